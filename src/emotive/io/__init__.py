@@ -1,0 +1,1 @@
+"""Motion file formats: BVH reading and writing."""

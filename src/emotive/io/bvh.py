@@ -1,0 +1,424 @@
+"""BVH reading and writing.
+
+The reader accepts any rotation channel order, 3 or 6 channels per joint, End Sites, CRLF
+line ends, tabs, scientific notation and zero-frame files. Every problem raises
+:class:`~emotive.errors.BVHError` naming the file, the line and the fix; no partial
+:class:`~emotive.core.Motion` is ever returned. Lengths are converted to metres on reading
+(``unit``) and back to the file's unit on writing; rotations become unit quaternions
+``w, x, y, z``.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import re
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from emotive.core.motion import Motion
+from emotive.core.skeleton import POSITION_CHANNELS, ROTATION_CHANNELS, Skeleton
+from emotive.errors import BVHError
+from emotive.transforms.np_rotations import euler_to_quaternion, quaternion_to_euler
+
+#: Metres per file unit for the units a BVH file may use.
+UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254}
+_VALID_CHANNELS = set(POSITION_CHANNELS) | set(ROTATION_CHANNELS)
+#: A rest pose taller than this many file units is taken as centimetres by ``unit="auto"``.
+_AUTO_CM_HEIGHT = 3.0
+
+
+@dataclass
+class _Joint:
+    name: str
+    parent: int
+    line: int
+    offset: np.ndarray | None = None
+    channels: tuple[str, ...] = ()
+    end_sites: list[np.ndarray] = field(default_factory=list)
+
+
+class _Tokens:
+    """Whitespace tokens of the header with their 1-based line numbers."""
+
+    def __init__(self, path: str, lines: list[str]) -> None:
+        self.path = path
+        self.items = [(tok, n + 1) for n, line in enumerate(lines) for tok in line.split()]
+        self.pos = 0
+
+    @property
+    def line(self) -> int:
+        if self.pos < len(self.items):
+            return self.items[self.pos][1]
+        return self.items[-1][1] if self.items else 1
+
+    def error(self, problem: str) -> BVHError:
+        return BVHError(self.path, self.line, problem)
+
+    def next(self, what: str) -> str:
+        if self.pos >= len(self.items):
+            raise self.error(f"file ends early while reading {what}: the file looks truncated")
+        tok = self.items[self.pos][0]
+        self.pos += 1
+        return tok
+
+    def expect(self, word: str) -> None:
+        tok = self.next(f"'{word}'")
+        if tok != word:
+            self.pos -= 1
+            raise self.error(f"expected '{word}' but found '{tok}'")
+
+    def number(self, what: str) -> float:
+        tok = self.next(what)
+        try:
+            value = float(tok)
+        except ValueError:
+            self.pos -= 1
+            raise self.error(f"{what} must be a number, found '{tok}'") from None
+        if not np.isfinite(value):
+            self.pos -= 1
+            raise self.error(f"{what} must be finite, found '{tok}'")
+        return value
+
+    def peek(self) -> str | None:
+        return self.items[self.pos][0] if self.pos < len(self.items) else None
+
+
+def _read_text(path: Path) -> str:
+    if path.is_dir():
+        raise BVHError(path, None, "is a directory, not a BVH file: pass the path of a .bvh file")
+    try:
+        raw = path.read_bytes()
+    except FileNotFoundError:
+        raise BVHError(path, None, "no such file: check the path") from None
+    except OSError as exc:
+        raise BVHError(path, None, f"cannot be read ({exc.strerror})") from None
+    if b"\x00" in raw[:4096]:
+        raise BVHError(path, None, "is a binary file, not a BVH text file")
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError:
+        try:
+            return raw.decode("latin-1")
+        except UnicodeDecodeError:  # pragma: no cover - latin-1 decodes every byte
+            raise BVHError(path, None, "is not a text file") from None
+
+
+def _parse_hierarchy(tokens: _Tokens) -> list[_Joint]:
+    if tokens.peek() is None:
+        raise tokens.error("the file is empty: a BVH file starts with HIERARCHY")
+    tokens.expect("HIERARCHY")
+    joints: list[_Joint] = []
+    seen: dict[str, int] = {}
+    tok = tokens.next("the ROOT joint")
+    if tok != "ROOT":
+        tokens.pos -= 1
+        raise tokens.error(f"expected 'ROOT' after HIERARCHY but found '{tok}': empty hierarchy")
+
+    def parse_joint(parent: int) -> None:
+        line = tokens.line
+        name = tokens.next("a joint name")
+        if name in ("{", "}"):
+            tokens.pos -= 1
+            raise tokens.error("a joint needs a name before '{'")
+        if name in seen:
+            raise BVHError(
+                tokens.path, line,
+                f"duplicate joint name '{name}' (first on line {joints[seen[name]].line}): "
+                "rename one of them",
+            )
+        joint = _Joint(name, parent, line)
+        seen[name] = len(joints)
+        joints.append(joint)
+        me = len(joints) - 1
+        tokens.expect("{")
+        while True:
+            tok = tokens.next(f"the body of joint '{name}'")
+            if tok == "OFFSET":
+                joint.offset = np.array([tokens.number(f"OFFSET of '{name}'") for _ in range(3)])
+            elif tok == "CHANNELS":
+                count_tok = tokens.next("the channel count")
+                if count_tok not in ("3", "6"):
+                    tokens.pos -= 1
+                    raise tokens.error(
+                        f"joint '{name}' has CHANNELS {count_tok}: only 3 (rotations) or "
+                        "6 (positions and rotations) channels per joint are supported"
+                    )
+                chans = tuple(tokens.next("a channel name") for _ in range(int(count_tok)))
+                bad = [c for c in chans if c not in _VALID_CHANNELS]
+                rot = [c for c in chans if c in ROTATION_CHANNELS]
+                if bad or len(set(chans)) != len(chans) or len(set(rot)) != 3:
+                    raise tokens.error(
+                        f"joint '{name}' has invalid channels {' '.join(chans)}: use three "
+                        "distinct rotation channels (and optionally the three position channels)"
+                    )
+                joint.channels = chans
+            elif tok == "JOINT":
+                parse_joint(me)
+            elif tok == "End":
+                tokens.expect("Site")
+                tokens.expect("{")
+                tokens.expect("OFFSET")
+                joint.end_sites.append(
+                    np.array([tokens.number(f"End Site OFFSET of '{name}'") for _ in range(3)])
+                )
+                tokens.expect("}")
+            elif tok == "}":
+                break
+            elif tok in ("MOTION", "ROOT"):
+                tokens.pos -= 1
+                raise tokens.error(
+                    f"joint '{name}' is not closed: a '}}' is missing before {tok} "
+                    "(unbalanced braces)"
+                )
+            else:
+                tokens.pos -= 1
+                raise tokens.error(f"unexpected '{tok}' in joint '{name}'")
+        if joint.offset is None:
+            raise BVHError(tokens.path, line, f"joint '{name}' has no OFFSET")
+        if not joint.channels:
+            raise BVHError(tokens.path, line, f"joint '{name}' has no CHANNELS")
+
+    parse_joint(-1)
+    nxt = tokens.peek()
+    if nxt == "ROOT":
+        raise tokens.error("several ROOT joints: only one hierarchy per file is supported")
+    if nxt != "MOTION":
+        if nxt is None:
+            raise tokens.error("the MOTION part is missing: the file ends after the hierarchy")
+        raise tokens.error(f"expected 'MOTION' after the hierarchy but found '{nxt}'")
+    return joints
+
+
+def _motion_header(path: str, lines: list[str], start: int) -> tuple[int, float, int]:
+    """Parse ``Frames:`` and ``Frame Time:``; return frames, frame time and data line index."""
+    idx = start + 1
+    values: dict[str, str] = {}
+    for key in ("Frames:", "Frame Time:"):
+        while idx < len(lines) and not lines[idx].strip():
+            idx += 1
+        if idx >= len(lines):
+            raise BVHError(path, idx, f"the MOTION part ends before '{key}': the file is truncated")
+        text = lines[idx].strip()
+        if not text.startswith(key):
+            raise BVHError(path, idx + 1, f"expected '{key}' but found '{text[:40]}'")
+        values[key] = text[len(key):].strip()
+        idx += 1
+    try:
+        frames = int(values["Frames:"])
+        if frames < 0:
+            raise ValueError
+    except ValueError:
+        raise BVHError(path, start + 2, f"'Frames:' must be a whole number >= 0, found '{values['Frames:']}'") from None
+    try:
+        frame_time = float(values["Frame Time:"])
+        if not (np.isfinite(frame_time) and frame_time > 0):
+            raise ValueError
+    except ValueError:
+        raise BVHError(path, start + 3, f"'Frame Time:' must be a positive number, found '{values['Frame Time:']}'") from None
+    return frames, frame_time, idx
+
+
+_ROW_RE = re.compile(r"(?:at row|line) (\d+)")
+
+
+def _parse_frames(path: str, lines: list[str], first: int, frames: int, width: int) -> np.ndarray:
+    data_lines = [ln for ln in lines[first:]]
+    # Keep track of the file line of each data row so errors can name it.
+    rows = [(n, ln) for n, ln in enumerate(data_lines, start=first + 1) if ln.strip()]
+    if len(rows) < frames:
+        raise BVHError(
+            path, len(lines),
+            f"the header says {frames} frames but only {len(rows)} follow: the file is truncated",
+        )
+    if len(rows) > frames:
+        raise BVHError(
+            path, rows[frames][0],
+            f"more frame lines than the {frames} that 'Frames:' declares: fix the count",
+        )
+    if frames == 0:
+        return np.zeros((0, width))
+    try:
+        values = np.loadtxt(
+            io.StringIO("\n".join(ln for _, ln in rows)), dtype=np.float64, ndmin=2, comments=None
+        )
+    except ValueError as exc:
+        match = _ROW_RE.search(str(exc))
+        line = rows[int(match.group(1)) - 1][0] if match and int(match.group(1)) <= len(rows) else None
+        problem = str(exc).split("\n")[0]
+        if "could not convert" in problem:
+            problem = f"non-numeric value in the frame data ({problem})"
+        raise BVHError(path, line, f"{problem}: every frame must hold {width} numbers") from None
+    if values.shape[1] != width:
+        raise BVHError(
+            path, rows[0][0],
+            f"each frame has {values.shape[1]} values but the hierarchy declares {width} "
+            "channels: the channel count does not match",
+        )
+    bad = ~np.isfinite(values)
+    if bad.any():
+        row = int(np.argmax(bad.any(axis=1)))
+        raise BVHError(path, rows[row][0], "NaN or infinite value in the frame data")
+    return values
+
+
+def _resolve_unit(unit: str, offsets: np.ndarray, parents: np.ndarray) -> str:
+    if unit != "auto":
+        if unit not in UNITS:
+            raise ValueError(f"unit must be 'auto' or one of {sorted(UNITS)}, got {unit!r}")
+        return unit
+    # Height of the rest pose: the vertical extent of the joints.
+    pos = np.zeros_like(offsets)
+    for j, p in enumerate(parents):
+        pos[j] = offsets[j] + (pos[p] if p >= 0 else 0.0)
+    extent = np.ptp(pos, axis=0).max() if len(pos) > 1 else 0.0
+    return "cm" if extent > _AUTO_CM_HEIGHT else "m"
+
+
+def read_bvh(path: str | os.PathLike, unit: str = "auto") -> Motion:
+    """Read a BVH file into a :class:`Motion` in metres.
+
+    Args:
+        path: the ``.bvh`` file.
+        unit: the file's length unit, one of ``"m"``, ``"cm"``, ``"mm"``, ``"in"``, or
+            ``"auto"`` (centimetres when the rest pose spans more than 3 units, else metres).
+
+    Returns:
+        The motion, with ``metadata`` holding ``name``, ``source`` and ``file_unit``.
+
+    Raises:
+        BVHError: the file is missing, not a BVH text file, or malformed; the message names
+            the line and the problem.
+    """
+    path = Path(path)
+    text = _read_text(path)
+    lines = text.splitlines()
+    motion_idx = next((n for n, ln in enumerate(lines) if ln.strip() == "MOTION"), None)
+    header = lines if motion_idx is None else lines[:motion_idx + 1]
+    tokens = _Tokens(str(path), header)
+    joints = _parse_hierarchy(tokens)
+    assert motion_idx is not None  # _parse_hierarchy raises without MOTION
+    frames, frame_time, data_start = _motion_header(str(path), lines, motion_idx)
+    width = sum(len(j.channels) for j in joints)
+    values = _parse_frames(str(path), lines, data_start, frames, width)
+
+    names = tuple(j.name for j in joints)
+    parents = np.array([j.parent for j in joints])
+    offsets = np.stack([j.offset for j in joints])
+    file_unit = _resolve_unit(unit, offsets, parents)
+    scale = UNITS[file_unit]
+    esp = np.array([n for n, j in enumerate(joints) for _ in j.end_sites], dtype=np.int64)
+    eso = np.array([o for j in joints for o in j.end_sites]).reshape(-1, 3)
+    skeleton = Skeleton(
+        names, parents, offsets * scale, tuple(j.channels for j in joints), esp, eso * scale
+    )
+
+    n_joints = len(joints)
+    rotations = np.zeros((frames, n_joints, 4))
+    positions = np.broadcast_to(skeleton.offsets, (frames, n_joints, 3)).copy()
+    col = 0
+    for j, joint in enumerate(joints):
+        block = values[:, col:col + len(joint.channels)]
+        col += len(joint.channels)
+        rot_cols = [k for k, c in enumerate(joint.channels) if c in ROTATION_CHANNELS]
+        order = "".join(joint.channels[k][0] for k in rot_cols)
+        rotations[:, j] = euler_to_quaternion(np.deg2rad(block[:, rot_cols]), order)
+        for k, c in enumerate(joint.channels):
+            if c in POSITION_CHANNELS:
+                positions[:, j, POSITION_CHANNELS.index(c)] = block[:, k] * scale
+    fps = 1.0 / frame_time
+    # Files store the frame time rounded (0.0333333); snap to the whole rate it stands for.
+    if abs(fps - round(fps)) < 1e-4 * fps:
+        fps = float(round(fps))
+    return Motion(
+        skeleton, rotations, positions, fps,
+        metadata={"name": path.stem, "source": str(path), "file_unit": file_unit},
+    )
+
+
+def _format_offset(values: np.ndarray) -> str:
+    return " ".join(f"{v:.9g}" for v in values)
+
+
+def _header_lines(skeleton: Skeleton, scale: float) -> list[str]:
+    out = ["HIERARCHY"]
+    kids = skeleton.children
+    ends: dict[int, list[np.ndarray]] = {}
+    for p, o in zip(skeleton.end_site_parents, skeleton.end_site_offsets, strict=True):
+        ends.setdefault(int(p), []).append(o)
+
+    def emit(j: int, depth: int) -> None:
+        pad = "  " * depth
+        kind = "ROOT" if skeleton.parents[j] < 0 else "JOINT"
+        out.append(f"{pad}{kind} {skeleton.names[j]}")
+        out.append(f"{pad}{{")
+        out.append(f"{pad}  OFFSET {_format_offset(skeleton.offsets[j] / scale)}")
+        chans = skeleton.channels[j]
+        out.append(f"{pad}  CHANNELS {len(chans)} {' '.join(chans)}")
+        for c in kids[j]:
+            emit(c, depth + 1)
+        for o in ends.get(j, []):
+            out += [f"{pad}  End Site", f"{pad}  {{", f"{pad}    OFFSET {_format_offset(o / scale)}", f"{pad}  }}"]
+        out.append(f"{pad}}}")
+
+    roots = [j for j, p in enumerate(skeleton.parents) if p < 0]
+    if len(roots) != 1:
+        raise BVHError("<motion>", None, f"BVH holds one hierarchy; this rig has {len(roots)} roots")
+    emit(roots[0], 0)
+    return out
+
+
+def _frame_values(motion: Motion, scale: float) -> np.ndarray:
+    sk = motion.skeleton
+    columns = []
+    for j in range(sk.num_joints):
+        order = sk.rotation_order(j)
+        euler = np.rad2deg(quaternion_to_euler(motion.rotations[:, j], order)) if order else None
+        for c in sk.channels[j]:
+            if c in POSITION_CHANNELS:
+                columns.append(motion.positions[:, j, POSITION_CHANNELS.index(c)] / scale)
+            else:
+                columns.append(euler[:, order.index(c[0])])
+    return np.stack(columns, axis=1) if columns else np.zeros((motion.num_frames, 0))
+
+
+def write_bvh(motion: Motion, path: str | os.PathLike, unit: str | None = None) -> Path:
+    """Write a motion to a BVH file atomically (a temporary file renamed into place).
+
+    Rotations are written as Euler angles in each joint's channel order, with the middle angle
+    in [-90, 90] degrees. Joints that do not animate translation are not written with position
+    channels; their rest offset is used.
+
+    Args:
+        motion: the motion to write.
+        path: destination ``.bvh`` path; its folder must exist.
+        unit: length unit of the file; defaults to the unit the motion was read from
+            (``motion.metadata["file_unit"]``), else centimetres.
+
+    Returns:
+        The written path.
+    """
+    path = Path(path)
+    unit = unit or motion.metadata.get("file_unit", "cm")
+    if unit not in UNITS:
+        raise ValueError(f"unit must be one of {sorted(UNITS)}, got {unit!r}")
+    scale = UNITS[unit]
+    if not path.parent.is_dir():
+        raise BVHError(path, None, "the output folder does not exist: create it first")
+    lines = _header_lines(motion.skeleton, scale)
+    lines += ["MOTION", f"Frames: {motion.num_frames}", f"Frame Time: {1.0 / motion.fps:.9g}"]
+    values = _frame_values(motion, scale)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", newline="\n") as fh:
+            fh.write("\n".join(lines) + "\n")
+            if len(values):
+                np.savetxt(fh, values, fmt="%.9g", delimiter=" ")
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path

@@ -1,0 +1,1 @@
+"""Rotation math and forward kinematics: torch kernels with thin NumPy wrappers."""
