@@ -75,11 +75,11 @@ class Motion:
         """``(T, J, 3)`` world joint positions in metres."""
         return self.global_transforms()[1]
 
-    def end_site_positions(self) -> np.ndarray:
-        """``(T, E, 3)`` world positions of the end sites."""
+    def positions_with_end_sites(self) -> np.ndarray:
+        """``(T, J + E, 3)`` world positions of the joints followed by the end sites."""
         grot, gpos = self.global_transforms()
         sk = self.skeleton
-        if len(sk.end_site_parents) == 0:
-            return np.zeros((self.num_frames, 0, 3))
         p = sk.end_site_parents
-        return quaternion_apply(grot[:, p], np.broadcast_to(sk.end_site_offsets, (len(grot), len(p), 3))) + gpos[:, p]
+        offsets = np.broadcast_to(sk.end_site_offsets, (self.num_frames, len(p), 3))
+        ends = quaternion_apply(grot[:, p], offsets) + gpos[:, p]
+        return np.concatenate((gpos, ends), axis=1)
