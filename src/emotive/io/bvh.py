@@ -140,6 +140,7 @@ def _parse_hierarchy(tokens: _Tokens) -> list[_Joint]:
             if tok == "OFFSET":
                 joint.offset = np.array([tokens.number(f"OFFSET of '{name}'") for _ in range(3)])
             elif tok == "CHANNELS":
+                chan_line = tokens.items[tokens.pos - 1][1]
                 count_tok = tokens.next("the channel count")
                 if count_tok not in ("3", "6"):
                     tokens.pos -= 1
@@ -151,7 +152,8 @@ def _parse_hierarchy(tokens: _Tokens) -> list[_Joint]:
                 bad = [c for c in chans if c not in _VALID_CHANNELS]
                 rot = [c for c in chans if c in ROTATION_CHANNELS]
                 if bad or len(set(chans)) != len(chans) or len(set(rot)) != 3:
-                    raise tokens.error(
+                    raise BVHError(
+                        tokens.path, chan_line,
                         f"joint '{name}' has invalid channels {' '.join(chans)}: use three "
                         "distinct rotation channels (and optionally the three position channels)"
                     )
@@ -222,7 +224,7 @@ def _motion_header(path: str, lines: list[str], start: int) -> tuple[int, float,
     return frames, frame_time, idx
 
 
-_ROW_RE = re.compile(r"(?:at row|line) (\d+)")
+_ROW_RE = re.compile(r"at row (\d+)")
 
 
 def _parse_frames(path: str, lines: list[str], first: int, frames: int, width: int) -> np.ndarray:
@@ -246,9 +248,14 @@ def _parse_frames(path: str, lines: list[str], first: int, frames: int, width: i
             io.StringIO("\n".join(ln for _, ln in rows)), dtype=np.float64, ndmin=2, comments=None
         )
     except ValueError as exc:
-        match = _ROW_RE.search(str(exc))
-        line = rows[int(match.group(1)) - 1][0] if match and int(match.group(1)) <= len(rows) else None
-        problem = str(exc).split("\n")[0]
+        text = str(exc).split("\n")[0]
+        match = _ROW_RE.search(text)
+        line = None
+        if match:
+            # NumPy numbers rows from 0 in conversion errors and from 1 in column-count errors.
+            row = int(match.group(1)) - (0 if "could not convert" in text else 1)
+            line = rows[row][0] if 0 <= row < len(rows) else None
+        problem = text.split(";")[0].rstrip(".")
         if "could not convert" in problem:
             problem = f"non-numeric value in the frame data ({problem})"
         raise BVHError(path, line, f"{problem}: every frame must hold {width} numbers") from None
@@ -361,7 +368,10 @@ def _header_lines(skeleton: Skeleton, scale: float) -> list[str]:
         for c in kids[j]:
             emit(c, depth + 1)
         for o in ends.get(j, []):
-            out += [f"{pad}  End Site", f"{pad}  {{", f"{pad}    OFFSET {_format_offset(o / scale)}", f"{pad}  }}"]
+            out.extend((
+                f"{pad}  End Site", f"{pad}  {{",
+                f"{pad}    OFFSET {_format_offset(o / scale)}", f"{pad}  }}",
+            ))
         out.append(f"{pad}}}")
 
     roots = [j for j, p in enumerate(skeleton.parents) if p < 0]

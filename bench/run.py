@@ -1,0 +1,62 @@
+"""Run every benchmark, print a side-by-side table and save JSON under ``bench/results/``.
+
+Usage: ``python bench/run.py [--out bench/results/NAME.json] [--quick]``. Needs the Bandai Namco
+data (``EMOTIVE_DATA`` or ``../shared/data``). Numbers are medians of repeated runs; ratios
+compare emotive with a baseline measured in the same run (ratio > 1: emotive is faster).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+
+import bench_bvh  # noqa: E402
+import bench_kinematics  # noqa: E402
+from common import machine_info  # noqa: E402
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", type=Path, default=None)
+    parser.add_argument("--quick", action="store_true", help="dataset 1 only, fewer repeats")
+    args = parser.parse_args()
+
+    from emotive.data import dataset_dir
+    from emotive.io.bvh import read_bvh
+
+    d1 = sorted((dataset_dir("bandai-namco-1") / "data").glob("*.bvh"))
+    clips = d1 if args.quick else d1 + sorted(
+        (dataset_dir("bandai-namco-2-locomotion") / "data").glob("*.bvh")
+    )
+    walk = read_bvh(next(p for p in d1 if "walk_happy_001" in p.name))
+
+    results = []
+    for name, fn in (
+        ("bvh", lambda: bench_bvh.run(clips, repeats=1 if args.quick else 3)),
+        ("kinematics", lambda: bench_kinematics.run(walk)),
+    ):
+        print(f"running {name} ...", flush=True)
+        results += fn()
+
+    print(f"\n{'benchmark':58} {'unit':9} {'emotive':>12} {'baseline':>12} {'ratio':>7}  baseline")
+    for r in results:
+        print(f"{r['name']:58} {r['unit']:9} {r['ours']:12.0f} {r['baseline']:12.0f} "
+              f"{r['ratio']:7.2f}  {r['baseline_name']}")
+    record = {"time": time.strftime("%Y-%m-%dT%H:%M:%S"), "machine": machine_info(), "results": results}
+    out = args.out or HERE / "results" / f"bench-{time.strftime('%Y%m%d-%H%M%S')}.json"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_suffix(".tmp")
+    tmp.write_text(json.dumps(record, indent=2))
+    os.replace(tmp, out)
+    print(f"\nsaved {out}")
+
+
+if __name__ == "__main__":
+    main()
