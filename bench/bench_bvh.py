@@ -5,7 +5,6 @@ from __future__ import annotations
 from pathlib import Path
 
 from common import comparison, median_seconds
-
 from emotive.io.bvh import read_bvh
 
 
@@ -15,7 +14,9 @@ def run(clips: list[Path], repeats: int = 3) -> list[dict]:
 
     frames = sum(read_bvh(p).num_frames for p in clips)
     ours = median_seconds(lambda: [read_bvh(p) for p in clips], repeats=repeats, warmup=0)
-    theirs = median_seconds(lambda: [bvhio.readAsBvh(str(p)) for p in clips], repeats=repeats, warmup=0)
+    theirs = median_seconds(
+        lambda: [bvhio.readAsBvh(str(p)) for p in clips], repeats=repeats, warmup=0
+    )
     return [
         comparison(f"bvh_parse[{len(clips)} clips, {frames} frames]", "frames/s",
                    frames / ours, frames / theirs, "bvhio.readAsBvh"),

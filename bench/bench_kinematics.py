@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import torch
-from common import comparison, median_seconds
 
+from common import comparison, median_seconds
 from emotive.core import Motion
 from emotive.transforms.kinematics import forward_kinematics
 from emotive.transforms.rotations import quaternion_apply, quaternion_multiply
@@ -24,8 +24,17 @@ def joint_loop_fk(rot: torch.Tensor, pos: torch.Tensor, parents) -> torch.Tensor
     return torch.stack(gpos, -2)
 
 
-def run(motion: Motion, batch: int = 64, window: int = 120) -> list[dict]:
-    """Frames per second of FK on ``(batch, window, J)`` windows of ``motion``'s rig."""
+def run(
+    motion: Motion, sizes: tuple[tuple[int, int], ...] = ((1, 120), (64, 120), (1000, 1))
+) -> list[dict]:
+    """Frames per second of FK on ``(batch, window, J)`` windows of ``motion``'s rig.
+
+    ``(1000, 1)`` is the shape of one streaming step of 1000 agents.
+    """
+    return [r for batch, window in sizes for r in _run_size(motion, batch, window)]
+
+
+def _run_size(motion: Motion, batch: int, window: int) -> list[dict]:
     parents = list(motion.skeleton.parents)
     rng = np.random.default_rng(0)
     starts = rng.integers(0, max(1, motion.num_frames - window), batch)

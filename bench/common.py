@@ -38,13 +38,22 @@ def machine_info() -> dict[str, Any]:
     }
 
 
-def comparison(name: str, unit: str, ours: float, baseline: float, baseline_name: str) -> dict:
-    """One side-by-side record; ``ratio`` > 1 means ours is faster (rates, higher is better)."""
+def comparison(
+    name: str, unit: str, ours: float, baseline: float, baseline_name: str,
+    higher_is_better: bool = True,
+) -> dict:
+    """One side-by-side record; ``ratio`` > 1 always means emotive does better.
+
+    For rates (``higher_is_better``) the ratio is ``ours / baseline``; for times it is
+    ``baseline / ours``.
+    """
+    num, den = (ours, baseline) if higher_is_better else (baseline, ours)
     return {
         "name": name,
         "unit": unit,
         "ours": ours,
         "baseline": baseline,
         "baseline_name": baseline_name,
-        "ratio": ours / baseline if baseline else float("inf"),
+        "higher_is_better": higher_is_better,
+        "ratio": num / den if den else float("inf"),
     }

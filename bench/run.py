@@ -2,7 +2,7 @@
 
 Usage: ``python bench/run.py [--out bench/results/NAME.json] [--quick]``. Needs the Bandai Namco
 data (``EMOTIVE_DATA`` or ``../shared/data``). Numbers are medians of repeated runs; ratios
-compare emotive with a baseline measured in the same run (ratio > 1: emotive is faster).
+compare emotive with a baseline measured in the same run (ratio > 1: emotive does better).
 """
 
 from __future__ import annotations
@@ -18,8 +18,13 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
 import bench_bvh  # noqa: E402
+import bench_data  # noqa: E402
 import bench_kinematics  # noqa: E402
 from common import machine_info  # noqa: E402
+
+
+def _number(value: float) -> str:
+    return f"{value:12,.0f}" if abs(value) >= 100 else f"{value:12.4g}"
 
 
 def main() -> None:
@@ -41,15 +46,18 @@ def main() -> None:
     for name, fn in (
         ("bvh", lambda: bench_bvh.run(clips, repeats=1 if args.quick else 3)),
         ("kinematics", lambda: bench_kinematics.run(walk)),
+        ("data", lambda: bench_data.run(repeats=1 if args.quick else 3)),
     ):
         print(f"running {name} ...", flush=True)
         results += fn()
 
     print(f"\n{'benchmark':58} {'unit':9} {'emotive':>12} {'baseline':>12} {'ratio':>7}  baseline")
     for r in results:
-        print(f"{r['name']:58} {r['unit']:9} {r['ours']:12.0f} {r['baseline']:12.0f} "
+        print(f"{r['name']:58} {r['unit']:9} {_number(r['ours'])} {_number(r['baseline'])} "
               f"{r['ratio']:7.2f}  {r['baseline_name']}")
-    record = {"time": time.strftime("%Y-%m-%dT%H:%M:%S"), "machine": machine_info(), "results": results}
+    record = {
+        "time": time.strftime("%Y-%m-%dT%H:%M:%S"), "machine": machine_info(), "results": results
+    }
     out = args.out or HERE / "results" / f"bench-{time.strftime('%Y%m%d-%H%M%S')}.json"
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_suffix(".tmp")

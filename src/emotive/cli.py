@@ -7,9 +7,13 @@ every :class:`~emotive.errors.EmotiveError` into a one-line message and a non-ze
 from __future__ import annotations
 
 import sys
+from typing import Annotated
 
 import typer
 
+import emotive
+from emotive.commands import inspect as _inspect
+from emotive.commands.data import app as data_app
 from emotive.errors import EmotiveError
 
 app = typer.Typer(
@@ -19,6 +23,29 @@ app = typer.Typer(
     add_completion=False,
     pretty_exceptions_enable=False,
 )
+
+
+
+def _print_version(value: bool) -> None:
+    if value:
+        typer.echo(f"emotive {emotive.__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _root(
+    version: Annotated[
+        bool,
+        typer.Option("--version", callback=_print_version, is_eager=True,
+                     help="Print the version and exit."),
+    ] = False,
+) -> None:
+    """Make virtual agents move with emotion."""
+
+
+app.command("info")(_inspect.info)
+app.command("features")(_inspect.features)
+app.add_typer(data_app, name="data")
 
 
 def main() -> None:

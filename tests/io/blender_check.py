@@ -24,7 +24,7 @@ arm = next(o for o in bpy.context.scene.objects if o.type == "ARMATURE")
 bones = arm.data.bones
 action = arm.animation_data.action
 start, end = action.frame_range
-frame = int(round(start)) + int(sys.argv[sys.argv.index("--") + 2])
+frame = round(start) + int(sys.argv[sys.argv.index("--") + 2])
 bpy.context.scene.frame_set(frame)
 # Blender is Z-up: a BVH point (x, y, z) lands at (x, -z, y); map it back to the file's axes.
 heads = [list(arm.matrix_world @ arm.pose.bones[b.name].head) for b in bones]
@@ -32,7 +32,7 @@ heads = [[h[0], h[2], -h[1]] for h in heads]
 print("EMOTIVE_CHECK " + json.dumps({
     "bones": [b.name for b in bones],
     "parents": [b.parent.name if b.parent else None for b in bones],
-    "frames": int(round(end - start)) + 1,
+    "frames": round(end - start) + 1,
     "heads": heads,
     "fps": bpy.context.scene.render.fps / bpy.context.scene.render.fps_base,
 }))

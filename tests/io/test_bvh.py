@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from emotive.errors import BVHError
+from emotive.io import bvh as bvh_module
 from emotive.io.bvh import read_bvh, write_bvh
 from emotive.transforms.np_rotations import euler_to_quaternion
 
@@ -104,15 +106,19 @@ class TestWriteBVH:
         assert text.count("ROOT") == 1 and text.count("End Site") == 2
         assert "Frames: 20" in text
 
-    def test_atomic_no_partial_file(self, tmp_path, random_motion):
+    def test_atomic_no_partial_file(self, tmp_path, random_motion, monkeypatch):
         m = random_motion()
         with pytest.raises(BVHError, match="folder does not exist"):
             write_bvh(m, tmp_path / "missing" / "m.bvh")
         target = tmp_path / "m.bvh"
-        bad = m.replace(metadata={"file_unit": "cm"})
-        object.__setattr__(bad, "rotations", bad.rotations[:, :2])  # corrupt: too few joints
-        with pytest.raises(Exception):
-            write_bvh(bad, target)
+
+        def fail_midway(fh, *args, **kwargs):
+            fh.write("0 1 2\n")
+            raise OSError("disk full")
+
+        monkeypatch.setattr(bvh_module.np, "savetxt", fail_midway)
+        with pytest.raises(OSError, match="disk full"):
+            write_bvh(m, target)
         assert list(tmp_path.iterdir()) == []
 
 
@@ -130,17 +136,24 @@ CORPUS = [
     ("truncated_hierarchy", VALID[: VALID.index("JOINT Leg")], 14, "truncated"),
     ("truncated_frames", VALID.rsplit("3 92", 1)[0], None, "truncated"),
     ("extra_frames", VALID + "4 93 5 13 23 33 8 -8 48 3 3 3\n", 31, "more frame lines"),
-    ("wrong_channel_count", _mutate("CHANNELS 3 Xrotation", "CHANNELS 4 Xrotation"), 9, "CHANNELS 4"),
-    ("bad_channel_name", _mutate("Yrotation Zrotation Xrotation", "Yrotation Zrotation Wrotation"), 18, "invalid channels"),
-    ("short_row", _mutate("2 91 3 11 21 31 6 -6 46 1 1 1", "2 91 3 11 21 31 6 -6 46 1 1"), FIRST_FRAME_LINE + 1, "12 numbers"),
-    ("long_rows", VALID.replace(" 0 0 0\n", " 0 0 0 9\n").replace(" 1 1 1\n", " 1 1 1 9\n").replace(" 2 2 2\n", " 2 2 2 9\n"), FIRST_FRAME_LINE, "channel count"),
+    ("wrong_channel_count", _mutate("CHANNELS 3 Xrotation", "CHANNELS 4 Xrotation"), 9,
+     "CHANNELS 4"),
+    ("bad_channel_name",
+     _mutate("Yrotation Zrotation Xrotation", "Yrotation Zrotation Wrotation"), 18,
+     "invalid channels"),
+    ("short_row", _mutate("2 91 3 11 21 31 6 -6 46 1 1 1", "2 91 3 11 21 31 6 -6 46 1 1"),
+     FIRST_FRAME_LINE + 1, "12 numbers"),
+    ("long_rows", re.sub(r" (\d) \1 \1\n", r" \1 \1 \1 9\n", VALID), FIRST_FRAME_LINE,
+     "channel count"),
     ("non_numeric", _mutate("3 92 4 12", "3 92 four 12"), FIRST_FRAME_LINE + 2, "non-numeric"),
     ("nan_value", _mutate("2 91 3 11", "2 91 nan 11"), FIRST_FRAME_LINE + 1, "NaN"),
     ("inf_offset", _mutate("OFFSET 0 10 0", "OFFSET 0 inf 0"), 8, "finite"),
     ("text_offset", _mutate("OFFSET 0 10 0", "OFFSET 0 ten 0"), 8, "must be a number"),
     ("duplicate_names", _mutate("JOINT Leg", "JOINT Spine"), 15, "duplicate joint name 'Spine'"),
     ("unbalanced_braces", _mutate("  }\n  JOINT Leg", "  JOINT Leg"), None, "not closed"),
-    ("two_roots", VALID.split("MOTION")[0] + "ROOT Other\n{\n}\nMOTION\nFrames: 0\nFrame Time: 0.1\n", 25, "several ROOT"),
+    ("two_roots",
+     VALID.split("MOTION")[0] + "ROOT Other\n{\n}\nMOTION\nFrames: 0\nFrame Time: 0.1\n", 25,
+     "several ROOT"),
     ("bad_frames", _mutate("Frames: 3", "Frames: three"), 26, "whole number"),
     ("bad_frame_time", _mutate("Frame Time: 0.0333333", "Frame Time: -1"), 27, "positive"),
     ("no_offset", _mutate("    OFFSET 0 10 0\n", ""), 6, "no OFFSET"),

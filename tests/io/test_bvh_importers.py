@@ -90,7 +90,8 @@ class TestImporters:
         path, motion = written
         got = _threejs(path)
         sk = motion.skeleton
-        joints = [(b, p) for b, p in zip(got["bones"], got["parents"], strict=True) if b != "ENDSITE"]
+        pairs = zip(got["bones"], got["parents"], strict=True)
+        joints = [(b, p) for b, p in pairs if b != "ENDSITE"]
         assert [b for b, _ in joints] == list(sk.names)
         assert [p for _, p in joints] == [sk.names[p] if p >= 0 else None for p in sk.parents]
         assert got["bones"].count("ENDSITE") == len(sk.end_site_parents)

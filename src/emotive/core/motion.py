@@ -41,7 +41,9 @@ class Motion:
         if rot.ndim != 3 or rot.shape[1:] != (n, 4):
             raise EmotiveError(f"rotations must have shape (T, {n}, 4), got {rot.shape}")
         if pos.shape != (rot.shape[0], n, 3):
-            raise EmotiveError(f"positions must have shape ({rot.shape[0]}, {n}, 3), got {pos.shape}")
+            raise EmotiveError(
+                f"positions must have shape ({rot.shape[0]}, {n}, 3), got {pos.shape}"
+            )
         if not self.fps > 0:
             raise EmotiveError(f"fps must be positive, got {self.fps}")
         object.__setattr__(self, "rotations", rot)

@@ -121,7 +121,59 @@ def _try_map(skeleton: Skeleton, mapping: dict[str, str]) -> tuple[dict[str, int
     return index, missing
 
 
-def resolve_roles(skeleton: Skeleton, role_map: str | Path | dict[str, str] | None = None) -> JointRoles:
+def point_name(skeleton: Skeleton, index: int) -> str:
+    """Name of an entry of the ``(J + E)`` joint-then-end-site array (``"Hand_L/end"``)."""
+    n = skeleton.num_joints
+    if index < n:
+        return skeleton.names[index]
+    return f"{skeleton.names[skeleton.end_site_parents[index - n]]}{END_SITE}"
+
+
+def _candidates(role_map: str | Path | dict[str, str] | None) -> list[tuple[str, dict[str, str]]]:
+    if role_map is None:
+        return list(BUILTIN_MAPS.items())
+    if isinstance(role_map, dict):
+        return [("user", role_map)]
+    if str(role_map) in BUILTIN_MAPS:
+        return [(str(role_map), BUILTIN_MAPS[str(role_map)])]
+    return [(str(role_map), load_role_map(role_map))]
+
+
+def match_roles(
+    skeleton: Skeleton, role_map: str | Path | dict[str, str] | None = None
+) -> tuple[str, dict[str, int], list[str]]:
+    """The candidate map that resolves the most roles of a rig, without raising on gaps.
+
+    Args:
+        skeleton: the rig.
+        role_map: as for :func:`resolve_roles`.
+
+    Returns:
+        The map's name, role -> index into the ``(J + E)`` array for the roles found, and the
+        missing roles (empty when the rig is complete).
+    """
+    best: tuple[str, dict[str, int], list[str]] | None = None
+    for name, mapping in _candidates(role_map):
+        index, missing = _try_map(skeleton, mapping)
+        if best is None or len(missing) < len(best[2]):
+            best = (name, index, missing)
+        if not missing:
+            break
+    assert best is not None
+    return best
+
+
+def missing_roles_message(map_name: str, missing: list[str]) -> str:
+    """The one-line explanation of a rig that lacks ``missing`` roles under ``map_name``."""
+    return (
+        f"the rig lacks the roles {missing} (closest map: {map_name}); pass a JSON role map "
+        '{"role": "JointName", ...} with --roles to name the joints that play them'
+    )
+
+
+def resolve_roles(
+    skeleton: Skeleton, role_map: str | Path | dict[str, str] | None = None
+) -> JointRoles:
     """Map a rig onto :data:`ROLES`.
 
     Args:
@@ -132,29 +184,7 @@ def resolve_roles(skeleton: Skeleton, role_map: str | Path | dict[str, str] | No
     Raises:
         RigError: the rig lacks roles; the message lists the missing roles and how to supply them.
     """
-    if role_map is None:
-        candidates = list(BUILTIN_MAPS.items())
-    elif isinstance(role_map, dict):
-        candidates = [("user", role_map)]
-    elif str(role_map) in BUILTIN_MAPS:
-        candidates = [(str(role_map), BUILTIN_MAPS[str(role_map)])]
-    else:
-        candidates = [(str(role_map), load_role_map(role_map))]
-    best: tuple[str, list[str]] | None = None
-    for name, mapping in candidates:
-        index, missing = _try_map(skeleton, mapping)
-        if not missing:
-            labels = {}
-            for r, i in index.items():
-                labels[r] = (
-                    skeleton.names[i] if i < skeleton.num_joints
-                    else f"{skeleton.names[skeleton.end_site_parents[i - skeleton.num_joints]]}{END_SITE}"
-                )
-            return JointRoles(index, labels, name)
-        if best is None or len(missing) < len(best[1]):
-            best = (name, missing)
-    assert best is not None
-    raise RigError(
-        f"the rig lacks the roles {best[1]} (closest map: {best[0]}); pass a JSON role map "
-        '{"role": "JointName", ...} with --roles to name the joints that play them'
-    )
+    name, index, missing = match_roles(skeleton, role_map)
+    if missing:
+        raise RigError(missing_roles_message(name, missing))
+    return JointRoles(index, {r: point_name(skeleton, i) for r, i in index.items()}, name)

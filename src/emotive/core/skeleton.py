@@ -80,7 +80,9 @@ class Skeleton:
         try:
             return self.names.index(name)
         except ValueError:
-            raise RigError(f"joint {name!r} is not in the rig (joints: {', '.join(self.names)})")
+            raise RigError(
+                f"joint {name!r} is not in the rig (joints: {', '.join(self.names)})"
+            ) from None
 
     def rotation_order(self, joint: int) -> str:
         """Euler order of a joint's rotation channels, e.g. ``"ZXY"`` (``""`` if it has none)."""

@@ -214,13 +214,18 @@ def _motion_header(path: str, lines: list[str], start: int) -> tuple[int, float,
         if frames < 0:
             raise ValueError
     except ValueError:
-        raise BVHError(path, start + 2, f"'Frames:' must be a whole number >= 0, found '{values['Frames:']}'") from None
+        raise BVHError(
+            path, start + 2, f"'Frames:' must be a whole number >= 0, found '{values['Frames:']}'"
+        ) from None
     try:
         frame_time = float(values["Frame Time:"])
         if not (np.isfinite(frame_time) and frame_time > 0):
             raise ValueError
     except ValueError:
-        raise BVHError(path, start + 3, f"'Frame Time:' must be a positive number, found '{values['Frame Time:']}'") from None
+        found = values["Frame Time:"]
+        raise BVHError(
+            path, start + 3, f"'Frame Time:' must be a positive number, found '{found}'"
+        ) from None
     return frames, frame_time, idx
 
 
@@ -376,7 +381,9 @@ def _header_lines(skeleton: Skeleton, scale: float) -> list[str]:
 
     roots = [j for j, p in enumerate(skeleton.parents) if p < 0]
     if len(roots) != 1:
-        raise BVHError("<motion>", None, f"BVH holds one hierarchy; this rig has {len(roots)} roots")
+        raise BVHError(
+            "<motion>", None, f"BVH holds one hierarchy; this rig has {len(roots)} roots"
+        )
     emit(roots[0], 0)
     return out
 

@@ -43,7 +43,8 @@ def forward_kinematics(
     Root joints (parent ``-1``) take their local transform as global.
 
     Joints are processed level by level (all joints of one tree depth at once), so the Python
-    loop runs over the tree depth, not over joints.
+    loop runs over the tree depth, not over joints. The results are views with the joint axis
+    second to last; call ``.contiguous()`` where a dense layout matters.
 
     Args:
         local_rotations: ``(B..., J, 4)`` unit quaternions, ``w, x, y, z``.
@@ -63,25 +64,34 @@ def forward_kinematics(
     if local_rotations.shape[-2] != n_joints or local_positions.shape[-2] != n_joints:
         raise ValueError(f"expected {n_joints} joints to match parents")
     lead = torch.broadcast_shapes(local_rotations.shape[:-2], local_positions.shape[:-2])
-    lrot = local_rotations.expand(*lead, n_joints, 4)
-    lpos = local_positions.expand(*lead, n_joints, 3).to(lrot.dtype)
-    grot = [None] * n_joints
-    gpos = [None] * n_joints
+    # Joints first and contiguous: each level's gathers then copy whole blocks of memory.
+    lrot = local_rotations.expand(*lead, n_joints, 4).movedim(-2, 0).contiguous()
+    lpos = local_positions.expand(*lead, n_joints, 3).to(lrot.dtype).movedim(-2, 0).contiguous()
+    levels = depth_levels(parents)
+    # Every joint of depth d has its parent at depth d - 1: gather parents from the previous
+    # level's block by their place in it, then put the blocks back in joint order at the end.
+    place = np.empty(n_joints, dtype=np.int64)
+    for level in levels:
+        place[level] = np.arange(len(level))
     parent_arr = np.asarray(parents)
-    for level in depth_levels(parents):
-        idx = torch.as_tensor(level)
-        if parent_arr[level[0]] < 0:
-            rots, poss = lrot[..., idx, :], lpos[..., idx, :]
-        else:
-            pidx = parent_arr[level]
-            prot = torch.stack([grot[p] for p in pidx], -2)
-            ppos = torch.stack([gpos[p] for p in pidx], -2)
-            rots = quaternion_multiply(prot, lrot[..., idx, :])
-            poss = quaternion_apply(prot, lpos[..., idx, :]) + ppos
-        for n, j in enumerate(level):
-            grot[j] = rots[..., n, :]
-            gpos[j] = poss[..., n, :]
-    return torch.stack(grot, -2), torch.stack(gpos, -2)
+    rot_blocks: list[torch.Tensor] = []
+    pos_blocks: list[torch.Tensor] = []
+    device = lrot.device
+    for level in levels:
+        idx = torch.as_tensor(level, device=device)
+        rots, poss = lrot.index_select(0, idx), lpos.index_select(0, idx)
+        if parent_arr[level[0]] >= 0:
+            pidx = torch.as_tensor(place[parent_arr[level]], device=device)
+            prot = rot_blocks[-1].index_select(0, pidx)
+            poss = quaternion_apply(prot, poss) + pos_blocks[-1].index_select(0, pidx)
+            rots = quaternion_multiply(prot, rots)
+        rot_blocks.append(rots)
+        pos_blocks.append(poss)
+    order = torch.as_tensor(np.argsort(np.concatenate(levels)), device=device)
+    return (
+        torch.cat(rot_blocks, 0).index_select(0, order).movedim(0, -2),
+        torch.cat(pos_blocks, 0).index_select(0, order).movedim(0, -2),
+    )
 
 
 def forward_kinematics_np(

@@ -12,6 +12,9 @@ import torch
 
 def _to_tensor(x: Any) -> Any:
     if isinstance(x, np.ndarray):
+        # torch warns on read-only arrays (Skeleton's, broadcast views); the kernels never write.
+        if not x.flags.writeable:
+            x = x.copy()
         return torch.from_numpy(np.ascontiguousarray(x))
     if isinstance(x, np.generic):
         return torch.as_tensor(x)

@@ -139,10 +139,12 @@ def quaternion_slerp(a: torch.Tensor, b: torch.Tensor, t: torch.Tensor | float) 
     t = torch.as_tensor(t, dtype=a.dtype, device=a.device)[..., None]
     dot = (a * b).sum(-1, keepdim=True)
     b = torch.where(dot < 0, -b, b)
-    dot = dot.abs().clamp(max=1.0)
-    theta = torch.acos(dot)
+    dot = dot.abs()
+    # Nearly equal rotations interpolate linearly; keeping them out of acos keeps the gradient
+    # finite (acos has an infinite slope at 1).
+    close = dot > 1.0 - 1e-9
+    theta = torch.acos(torch.where(close, torch.zeros_like(dot), dot))
     sin_theta = torch.sin(theta)
-    close = sin_theta < 1e-6
     safe = torch.where(close, torch.ones_like(sin_theta), sin_theta)
     wa = torch.where(close, 1.0 - t, torch.sin((1.0 - t) * theta) / safe)
     wb = torch.where(close, t, torch.sin(t * theta) / safe)
@@ -229,8 +231,11 @@ def matrix_to_euler(m: torch.Tensor, order: str) -> torch.Tensor:
     # +1 for cyclic orders (XYZ, YZX, ZXY), -1 for the others.
     s = 1.0 if (j - i) % 3 == 1 else -1.0
     sin_b = (s * m[..., i, k]).clamp(-1.0, 1.0)
-    b = torch.asin(sin_b)
-    locked = sin_b.abs() > 1.0 - 1e-9
+    # cos(b) straight from the matrix row keeps b and the lock test accurate near +-pi/2, where
+    # asin loses digits; the general formulas stay accurate down to cos(b) ~ sqrt(eps).
+    cos_b = torch.hypot(m[..., i, i], m[..., i, j])
+    b = torch.atan2(sin_b, cos_b)
+    locked = cos_b < 1e-8
     a = torch.atan2(-s * m[..., j, k], m[..., k, k])
     c = torch.atan2(-s * m[..., i, j], m[..., i, i])
     # Gimbal lock: only a +- c is defined; recover it from the j-column block with c = 0.
@@ -275,7 +280,7 @@ def axis_angle_to_quaternion(v: torch.Tensor) -> torch.Tensor:
 
 
 def quaternion_to_axis_angle(q: torch.Tensor) -> torch.Tensor:
-    """Logarithmic map: ``(..., 4)`` quaternions to ``(..., 3)`` axis-angle with angle in [0, pi]."""
+    """Logarithmic map: ``(..., 4)`` quaternions to ``(..., 3)`` axis-angle, angle in [0, pi]."""
     _check_last(q, 4, "q")
     q = quaternion_normalize(q)
     q = torch.where(q[..., :1] < 0, -q, q)
@@ -323,8 +328,8 @@ def quaternion_between(u: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
     w = 1.0 + (u * v).sum(-1, keepdim=True)
     axis = torch.linalg.cross(u, v)
     # Opposite vectors: rotate by pi about any axis orthogonal to u.
-    ortho = torch.linalg.cross(u, torch.tensor([1.0, 0.0, 0.0], dtype=u.dtype).expand_as(u))
-    ortho2 = torch.linalg.cross(u, torch.tensor([0.0, 1.0, 0.0], dtype=u.dtype).expand_as(u))
+    ortho = torch.linalg.cross(u, u.new_tensor([1.0, 0.0, 0.0]).expand_as(u))
+    ortho2 = torch.linalg.cross(u, u.new_tensor([0.0, 1.0, 0.0]).expand_as(u))
     ortho = torch.where(ortho.norm(dim=-1, keepdim=True) < 1e-6, ortho2, ortho)
     opposite = w < 1e-9
     q = torch.where(opposite, torch.cat((torch.zeros_like(w), ortho), -1), torch.cat((w, axis), -1))
