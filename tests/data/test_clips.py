@@ -94,6 +94,19 @@ class TestLoadSynthetic:
         )
         assert [c.info.style for c in load_clips("fake-1", styles=["normal"])] == ["normal"] * 6
 
+    def test_first_load_shows_progress_only_when_asked(self, fake, monkeypatch, capfd):
+        from emotive.data.store import fetch
+
+        fetch("fake-1", fake.archive)
+        monkeypatch.setenv("FORCE_COLOR", "1")  # rich draws bars only on a terminal
+        load_clips("fake-1")
+        assert "parsing fake-1" not in capfd.readouterr().err
+        clips_mod.preprocessed_path("fake-1").unlink()
+        load_clips("fake-1", progress=True)
+        assert "parsing fake-1" in capfd.readouterr().err
+        load_clips("fake-1", progress=True)  # cached: nothing to parse, no bar
+        assert "parsing fake-1" not in capfd.readouterr().err
+
     def test_second_load_reads_the_cache(self, fake, monkeypatch, isolated_home):
         from emotive.data.store import fetch
 

@@ -100,7 +100,7 @@ def stats(
 
     result = frame_stats(
         name, locomotion=locomotion, val_fraction=val_fraction, test_fraction=test_fraction,
-        seed=seed,
+        seed=seed, progress=True,
     )
     splits = list(result.frames)
     header = ["content", "style", *splits, "clips"]

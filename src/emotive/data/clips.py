@@ -250,11 +250,21 @@ def preprocessed_path(name: str | DatasetInfo, unit: str = "auto") -> Path:
     return emotive_home() / "preprocessed" / f"{info.name}-{cache_key(info, unit)[:20]}.npz"
 
 
-def _preprocess(info: DatasetInfo, clips: list[ClipInfo], unit: str, dest: Path) -> None:
-    """Parse every clip and store the arrays in ``dest`` atomically."""
+def _preprocess(
+    info: DatasetInfo, clips: list[ClipInfo], unit: str, dest: Path, progress: bool
+) -> None:
+    """Parse every clip (with a progress bar on stderr if asked) and store the arrays in
+    ``dest`` atomically."""
+    from rich.console import Console
+    from rich.progress import track
+
     from emotive.io.bvh import read_bvh
 
-    motions = [read_bvh(c.path, unit=unit) for c in clips]
+    motions = [
+        read_bvh(c.path, unit=unit)
+        for c in track(clips, description=f"parsing {info.name} (once)", disable=not progress,
+                       console=Console(stderr=True), transient=True)
+    ]
     first = motions[0].skeleton
     for clip, m in zip(clips, motions, strict=True):
         sk = m.skeleton
@@ -296,7 +306,9 @@ def _preprocess(info: DatasetInfo, clips: list[ClipInfo], unit: str, dest: Path)
             stale.unlink(missing_ok=True)
 
 
-def _preprocessed(info: DatasetInfo, unit: str) -> tuple[Path, list[ClipInfo]]:
+def _preprocessed(
+    info: DatasetInfo, unit: str, progress: bool = False
+) -> tuple[Path, list[ClipInfo]]:
     """The preprocessed file of a data set (made on first use) and its clips, in file order."""
     clips = read_clip_index(dataset_dir(info), info)
     dest = preprocessed_path(info, unit)
@@ -307,14 +319,17 @@ def _preprocessed(info: DatasetInfo, unit: str) -> tuple[Path, list[ClipInfo]]:
             return dest, clips
         log.info("%s does not match the clips of %s; rebuilding it", dest, info.name)
     log.info("parsing %d clips of %s (once; cached in %s)", len(clips), info.name, dest)
-    _preprocess(info, clips, unit, dest)
+    _preprocess(info, clips, unit, dest, progress)
     return dest, clips
 
 
-def frame_counts(name: str | DatasetInfo, unit: str = "auto") -> dict[str, int]:
-    """``{clip name: frames}`` of every clip, from the preprocessing cache (made on first use)."""
+def frame_counts(
+    name: str | DatasetInfo, unit: str = "auto", progress: bool = False
+) -> dict[str, int]:
+    """``{clip name: frames}`` of every clip, from the preprocessing cache (made on first use,
+    with a progress bar if ``progress``)."""
     info = get_dataset(name)
-    path, clips = _preprocessed(info, unit)
+    path, clips = _preprocessed(info, unit, progress)
     with np.load(path, allow_pickle=False) as data:
         lengths = np.diff(data["frame_offsets"])
     return {c.name: int(n) for c, n in zip(clips, lengths, strict=True)}
@@ -327,6 +342,7 @@ def load_clips(
     contents: Sequence[str] | None = None,
     styles: Sequence[str] | None = None,
     unit: str = "auto",
+    progress: bool = False,
 ) -> list[Clip]:
     """Load the motions of a data set's clips, through the preprocessing cache.
 
@@ -337,13 +353,14 @@ def load_clips(
         name: registry name, e.g. ``"bandai-namco-1"``.
         locomotion, contents, styles: filters, see :func:`select_clips`.
         unit: file length unit passed to :func:`emotive.io.bvh.read_bvh`.
+        progress: show a progress bar on stderr while the first call parses the files.
 
     Returns:
         The clips sorted by name; each motion's ``metadata`` holds ``name``, ``source``,
         ``file_unit``, ``dataset``, ``content``, ``style``, ``take`` and ``emotion``.
     """
     info = get_dataset(name)
-    path, all_clips = _preprocessed(info, unit)
+    path, all_clips = _preprocessed(info, unit, progress)
     wanted = select_clips(all_clips, locomotion=locomotion, contents=contents, styles=styles)
     index = {c.name: i for i, c in enumerate(all_clips)}
     with np.load(path, allow_pickle=False) as data:

@@ -39,6 +39,7 @@ def frame_stats(
     val_fraction: float = 0.1,
     test_fraction: float = 0.1,
     seed: int = 0,
+    progress: bool = False,
 ) -> FrameStats:
     """Count frames per style per content in each split of a data set.
 
@@ -46,10 +47,11 @@ def frame_stats(
         name: registry name.
         locomotion: count only the locomotion contents (the split is made over those clips).
         val_fraction, test_fraction, seed: the split, see :mod:`emotive.data.splits`.
+        progress: show a progress bar if the clips must be parsed first.
     """
     info = get_dataset(name)
     clips = list_clips(info, locomotion=locomotion)
-    lengths = frame_counts(info)
+    lengths = frame_counts(info, progress=progress)
     parts = assign_splits(clips, val_fraction, test_fraction, seed)
     contents = tuple(c for c in info.contents if any(x.content == c for x in clips))
     styles = tuple(s for s in info.styles if any(x.style == s for x in clips))
