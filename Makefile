@@ -14,7 +14,7 @@ $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install -q --upgrade pip
 	$(BIN)/python -m pip install -q torch==2.13.0
-	$(BIN)/python -m pip install -q -e '.[dev,bench]'
+	$(BIN)/python -m pip install -q -e '.[dev,bench,eval]'
 	touch $@
 
 install: $(STAMP)
@@ -35,7 +35,9 @@ demo: install
 	mkdir -p demo_out
 	$(BIN)/emotive features "$$($(BIN)/emotive data path bandai-namco-1)/data/$(CLIP)" \
 		--out demo_out/features.csv --plot demo_out/features.png
-	@echo "demo outputs: demo_out/features.csv demo_out/features.png"
+	$(BIN)/emotive preview "$$($(BIN)/emotive data path bandai-namco-1)/data/$(CLIP)" \
+		--out demo_out/walk_happy.mp4 --caption happy
+	@echo "demo outputs: demo_out/features.csv demo_out/features.png demo_out/walk_happy.mp4"
 
 bench: install
 	$(BIN)/python bench/run.py

@@ -13,7 +13,9 @@ import typer
 
 import emotive
 from emotive.commands import inspect as _inspect
+from emotive.commands.classify import classify, train_app
 from emotive.commands.data import app as data_app
+from emotive.commands.render import preview
 from emotive.errors import EmotiveError
 
 app = typer.Typer(
@@ -45,6 +47,9 @@ def _root(
 
 app.command("info")(_inspect.info)
 app.command("features")(_inspect.features)
+app.command("preview")(preview)
+app.command("classify")(classify)
+app.add_typer(train_app, name="train")
 app.add_typer(data_app, name="data")
 
 

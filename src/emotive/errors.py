@@ -40,3 +40,7 @@ class ChecksumError(DataError):
 
 class EmotionError(EmotiveError):
     """An emotion name, weight vector or schedule that is not valid."""
+
+
+class PathError(EmotiveError):
+    """A path that cannot be followed: too few or repeated points, zero length, bad file."""

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import os
 import re
-import tempfile
 from pathlib import Path
 from typing import Annotated
 
@@ -18,6 +17,7 @@ from rich.table import Table
 from rich.tree import Tree
 
 from emotive.errors import EmotiveError
+from emotive.io.atomic import atomic_output
 
 #: File names of the Bandai Namco data sets: ``dataset-N_{content}_{style}_{take}.bvh``.
 _LABELLED_NAME = re.compile(
@@ -171,9 +171,8 @@ def features(
     n_float = table.shape[1] - 2
     fmt = ["%.9g"] * n_float + ["%d", "%d"]
 
-    fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent)
-    try:
-        with os.fdopen(fd, "w", newline="\n") as fh:
+    with atomic_output(out) as tmp:
+        with open(tmp, "w", newline="\n") as fh:
             np.savetxt(fh, table, fmt=fmt, delimiter=",", header=header, comments="")
         if plot is not None:
             from emotive.render.plots import plot_features
@@ -182,10 +181,6 @@ def features(
                 plot, times, affective, AFFECTIVE_FEATURE_NAMES, AFFECTIVE_FEATURE_KINDS,
                 movement.as_array(), MOVEMENT_FEATURE_NAMES, contacts, title=Path(file).name,
             )
-        os.replace(tmp, out)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
     Console(stderr=True).print(
         f"wrote {out} ({motion.num_frames} frames x {table.shape[1]} columns)"
         + (f" and {plot}" if plot is not None else "")

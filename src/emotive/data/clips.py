@@ -17,9 +17,7 @@ import hashlib
 import importlib
 import json
 import logging
-import os
 import re
-import tempfile
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -33,6 +31,7 @@ from emotive.data.emotion import style_to_label
 from emotive.data.registry import DatasetInfo, get_dataset
 from emotive.data.store import dataset_dir, emotive_home
 from emotive.errors import DataError
+from emotive.io.atomic import atomic_output
 
 log = logging.getLogger(__name__)
 
@@ -292,15 +291,8 @@ def _preprocess(
         "key": np.array(cache_key(info, unit)),
     }
     dest.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{dest.stem}.", suffix=".tmp", dir=dest.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            np.savez(fh, **arrays)
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, dest)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    with atomic_output(dest) as tmp, open(tmp, "wb") as fh:
+        np.savez(fh, **arrays)
     for stale in dest.parent.glob(f"{info.name}-*.npz"):
         if stale != dest:
             stale.unlink(missing_ok=True)

@@ -35,6 +35,7 @@ from pathlib import Path
 import emotive
 from emotive.data.registry import DatasetInfo, get_dataset
 from emotive.errors import ChecksumError, DataError
+from emotive.io.atomic import atomic_output
 
 log = logging.getLogger(__name__)
 
@@ -292,15 +293,9 @@ def fetch_archive(
         path = path / info.archive
     if not path.is_file():
         raise DataError(f"{path} does not exist: pass the {info.archive} file or its folder")
-    fd, tmp = tempfile.mkstemp(prefix=f".{info.archive}.", suffix=".tmp", dir=dest.parent)
-    os.close(fd)
-    try:
+    with atomic_output(dest) as tmp:
         shutil.copyfile(path, tmp)
-        verify_archive(info, Path(tmp), source=str(path))
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, dest)
-    finally:
-        Path(tmp).unlink(missing_ok=True)
+        verify_archive(info, tmp, source=str(path))
     return dest
 
 

@@ -13,7 +13,6 @@ from __future__ import annotations
 import io
 import os
 import re
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -22,6 +21,7 @@ import numpy as np
 from emotive.core.motion import Motion
 from emotive.core.skeleton import POSITION_CHANNELS, ROTATION_CHANNELS, Skeleton
 from emotive.errors import BVHError
+from emotive.io.atomic import atomic_output
 from emotive.transforms.np_rotations import euler_to_quaternion, quaternion_to_euler
 
 #: Metres per file unit for the units a BVH file may use.
@@ -428,14 +428,8 @@ def write_bvh(motion: Motion, path: str | os.PathLike, unit: str | None = None) 
     lines = _header_lines(motion.skeleton, scale)
     lines += ["MOTION", f"Frames: {motion.num_frames}", f"Frame Time: {1.0 / motion.fps:.9g}"]
     values = _frame_values(motion, scale)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", newline="\n") as fh:
-            fh.write("\n".join(lines) + "\n")
-            if len(values):
-                np.savetxt(fh, values, fmt="%.9g", delimiter=" ")
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    with atomic_output(path) as tmp, open(tmp, "w", newline="\n") as fh:
+        fh.write("\n".join(lines) + "\n")
+        if len(values):
+            np.savetxt(fh, values, fmt="%.9g", delimiter=" ")
     return path

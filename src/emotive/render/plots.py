@@ -6,11 +6,12 @@ Legend: ``T`` frames.
 from __future__ import annotations
 
 import os
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
+
+from emotive.io.atomic import atomic_output
 
 #: Colours of the left and right foot contact shading.
 CONTACT_COLOURS = ("tab:blue", "tab:orange")
@@ -107,12 +108,6 @@ def plot_features(
     axes[-1].set_xlabel("time (s); shading: contacts, blue left, orange right")
     if title:
         fig.suptitle(title)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=path.parent)
-    os.close(fd)
-    try:
+    with atomic_output(path) as tmp:
         fig.savefig(tmp, dpi=100, format=path.suffix.lstrip(".") or "png")
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
     return path
