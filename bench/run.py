@@ -19,6 +19,7 @@ sys.path.insert(0, str(HERE))
 
 import bench_bvh  # noqa: E402
 import bench_data  # noqa: E402
+import bench_features  # noqa: E402
 import bench_kinematics  # noqa: E402
 from common import machine_info  # noqa: E402
 
@@ -46,6 +47,7 @@ def main() -> None:
     for name, fn in (
         ("bvh", lambda: bench_bvh.run(clips, repeats=1 if args.quick else 3)),
         ("kinematics", lambda: bench_kinematics.run(walk)),
+        ("features", lambda: bench_features.run(walk)),
         ("data", lambda: bench_data.run(repeats=1 if args.quick else 3)),
     ):
         print(f"running {name} ...", flush=True)

@@ -12,8 +12,8 @@ import pytest
 
 import emotive
 from emotive.cli import main
-from emotive.commands.inspect import parse_labels
 from emotive.core import Motion, Skeleton
+from emotive.data.clips import parse_clip_name
 from emotive.io.bvh import write_bvh
 from emotive.transforms.np_rotations import euler_to_quaternion
 
@@ -88,14 +88,14 @@ class TestLabels:
          ("2", "walk-turn-left", "not-confident", "012")),
     ])
     def test_pattern(self, name, labels):
-        got = parse_labels(name)
+        got = parse_clip_name(name)
         assert got is not None
         assert (got["dataset"], got["content"], got["style"], got["take"]) == labels
 
     @pytest.mark.parametrize("name", ["walk.bvh", "dataset-1_walk_happy.bvh",
                                       "dataset-1_walk_happy_001_extra.bvh"])
     def test_other_names(self, name):
-        assert parse_labels(name) is None
+        assert parse_clip_name(name) is None
 
 
 class TestInfo:

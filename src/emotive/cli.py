@@ -13,7 +13,7 @@ import typer
 
 import emotive
 from emotive.commands import inspect as _inspect
-from emotive.commands.classify import classify, train_app
+from emotive.commands.classify import classify, evaluate, train_app
 from emotive.commands.data import app as data_app
 from emotive.commands.render import preview
 from emotive.errors import EmotiveError
@@ -49,6 +49,7 @@ app.command("info")(_inspect.info)
 app.command("features")(_inspect.features)
 app.command("preview")(preview)
 app.command("classify")(classify)
+app.command("evaluate")(evaluate)
 app.add_typer(train_app, name="train")
 app.add_typer(data_app, name="data")
 

@@ -1,4 +1,4 @@
-"""``emotive classify`` and ``emotive train classifier``: the perceived-emotion classifier.
+"""``emotive classify``, ``emotive evaluate`` and ``emotive train classifier``.
 
 Heavy modules are imported inside the commands so that ``emotive --help`` stays fast.
 """
@@ -109,3 +109,35 @@ def train_classifier_command(
         f"wrote {path} and {out / 'MODEL_CARD.md'}: test window accuracy "
         f"{test['window_accuracy']:.3f} on {test['windows']} windows of {test['clips']} clips"
     )
+
+
+def evaluate(
+    model: Annotated[
+        str, typer.Option("--model", help="A folder of BVH files with intended emotions, or a "
+                          "model name (zero-velocity).", show_default=False)
+    ],
+    suite: Annotated[
+        str, typer.Option("--suite", help="table1, emotion, transition, path, longrun, quality, "
+                          "speed or all.")
+    ] = "all",
+    out: Annotated[Path | None, typer.Option("--out", help="Report folder.",
+                                             show_default=False)] = None,
+    classifier: Annotated[
+        Path | None, typer.Option("--classifier", help="Classifier file (default: built-in).",
+                                  show_default=False),
+    ] = None,
+) -> None:
+    """Evaluate a model or a folder of BVH files: report.md, metrics.json and plots."""
+    from rich.console import Console
+
+    from emotive.eval.classifier import EmotionClassifier, load_default_classifier
+    from emotive.eval.evaluate import resolve_subject, run_suites
+    from emotive.eval.report import write_report
+
+    clf = EmotionClassifier.load(classifier) if classifier else load_default_classifier()
+    subject = resolve_subject(model, clf.labels)
+    out = out or Path("reports") / subject.name
+    results, info = run_suites(subject, suite, clf, progress=True)
+    folder = write_report(out, subject.name, results, info)
+    Console(stderr=True).print(f"wrote {folder / 'report.md'}, {folder / 'metrics.json'} and "
+                               f"{sum(len(r.get('figures', [])) for r in results.values())} plots")

@@ -6,8 +6,6 @@ that ``emotive --help`` stays fast.
 
 from __future__ import annotations
 
-import os
-import re
 from pathlib import Path
 from typing import Annotated
 
@@ -19,10 +17,6 @@ from rich.tree import Tree
 from emotive.errors import EmotiveError
 from emotive.io.atomic import atomic_output
 
-#: File names of the Bandai Namco data sets: ``dataset-N_{content}_{style}_{take}.bvh``.
-_LABELLED_NAME = re.compile(
-    r"^dataset-(?P<dataset>\d+)_(?P<content>[^_]+)_(?P<style>[^_]+)_(?P<take>\d+)$"
-)
 #: Image formats ``--plot`` accepts.
 PLOT_SUFFIXES = (".png", ".pdf", ".svg")
 
@@ -40,17 +34,6 @@ RolesOpt = Annotated[
 ]
 
 
-def parse_labels(path: str | os.PathLike) -> dict[str, str] | None:
-    """Labels in a file name ``dataset-N_{content}_{style}_{take}.bvh``.
-
-    Returns:
-        ``{"dataset", "content", "style", "take"}`` strings, or ``None`` when the name does
-        not follow the pattern.
-    """
-    match = _LABELLED_NAME.match(Path(path).stem)
-    return match.groupdict() if match else None
-
-
 def _role_rows(skeleton, role_map: str | None) -> tuple[str, dict[str, str | None], str | None]:
     """Map name, role -> joint (``None`` if missing) and the error text when roles are missing."""
     from emotive.core import roles as R
@@ -65,6 +48,7 @@ def info(
     roles: RolesOpt = None,
 ) -> None:
     """Describe a BVH clip: rig, roles, frames, duration and file-name labels."""
+    from emotive.data.clips import parse_clip_name
     from emotive.io.bvh import read_bvh
 
     motion = read_bvh(file)
@@ -75,7 +59,7 @@ def info(
         f"frames: {motion.num_frames}   fps: {motion.fps:g}   "
         f"duration: {motion.duration:.2f} s   file unit: {motion.metadata.get('file_unit', '?')}"
     )
-    labels = parse_labels(file)
+    labels = parse_clip_name(file)
     if labels:
         from emotive.data.emotion import VALENCE_AROUSAL, canonical_label
 

@@ -17,6 +17,7 @@ import hashlib
 import importlib
 import json
 import logging
+import os
 import re
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
@@ -40,7 +41,20 @@ CACHE_SOURCES = (
     "emotive.io.bvh", "emotive.transforms.np_rotations", "emotive.core.skeleton",
     "emotive.data.clips",
 )
-_NAME_RE = re.compile(r"^dataset-(\d+)_([a-z0-9-]+)_([a-z0-9-]+)_(\d+)$")
+_NAME_RE = re.compile(
+    r"^dataset-(?P<dataset>\d+)_(?P<content>[a-z0-9-]+)_(?P<style>[a-z0-9-]+)_(?P<take>\d+)$"
+)
+
+
+def parse_clip_name(path: str | os.PathLike) -> dict[str, str] | None:
+    """Labels in a Bandai Namco file name ``dataset-N_{content}_{style}_{take}.bvh``.
+
+    Returns:
+        ``{"dataset", "content", "style", "take"}`` strings, or ``None`` when the name does
+        not follow the pattern.
+    """
+    match = _NAME_RE.match(Path(path).stem)
+    return match.groupdict() if match else None
 
 
 @dataclass(frozen=True)

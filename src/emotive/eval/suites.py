@@ -1,0 +1,282 @@
+"""The evaluation suites over motions with an intended emotion (see :mod:`.sources`).
+
+Each suite takes :class:`~emotive.eval.sources.EvaluatedMotion` items and returns a JSON-ready
+dict; :mod:`emotive.eval.report` turns the dicts into ``report.md``, ``metrics.json`` and
+plots.
+
+* ``emotion``: the perceived-emotion classifier judges every item in windows; intended versus
+  perceived per item with the main paper's Table-3 test (2-sample Anderson-Darling between the
+  item's mean intended and mean perceived emotion vectors), a confusion matrix of dominant
+  labels per window, and the accuracy as a share of the classifier's accuracy on real
+  held-out motion.
+* ``transition``: items whose dominant intended label changes: Table-3 tests on the first and
+  the last window, and the jerk around each change against the windowed jerk of real motion
+  (above its 99th percentile counts as not smooth).
+* ``path``: items with a path: distance of the root from the path and heading deviation.
+* ``longrun``: motion energy (mean joint speed, root-relative) per second, collapse and
+  explosion detection against the energy of real motion of the item's dominant emotion, and
+  the share of seconds inside that real 5-95 % range.
+* ``quality``: foot skating and ground penetration, against real motion.
+
+Real reference statistics come from :func:`real_reference` (real clips of the labels).
+
+Legend: ``T`` frames, ``J`` joints, ``C`` labels, ``K`` windows.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from emotive.core.motion import Motion
+from emotive.core.roles import resolve_roles
+from emotive.eval import metrics
+from emotive.eval.classifier import EmotionClassifier
+from emotive.eval.sources import EvaluatedMotion
+from emotive.eval.stats import StatsInputError, anderson_darling_ksamp
+
+#: Seconds per window of the classifier and the energy measure.
+WINDOW_SECONDS = 4.0
+HOP_SECONDS = 1.0
+ENERGY_WINDOW_SECONDS = 1.0
+#: Significance level of the Table-3 tests.
+ALPHA = 0.05
+
+
+@dataclass(frozen=True)
+class RealReference:
+    """Statistics of real motion the suites compare against.
+
+    Attributes:
+        labels: the labels.
+        window_jerk: ``(N,)`` windowed jerk samples of real clips (m/s^3).
+        energy: label -> ``(N,)`` per-second motion energy samples (m/s).
+        skate: mean planted-foot speed of the real clips (m/s).
+        source: which clips.
+    """
+
+    labels: tuple[str, ...]
+    window_jerk: np.ndarray
+    energy: dict[str, np.ndarray]
+    skate: float
+    source: str
+
+
+def _points(motion: Motion) -> tuple[np.ndarray, object, int]:
+    roles = resolve_roles(motion.skeleton)
+    return motion.positions_with_end_sites(), roles, roles.index["root"]
+
+
+def _energy(motion: Motion) -> np.ndarray:
+    """Per-second energy of the joints relative to the root role (Hips on the Bandai rig)."""
+    root = motion.skeleton.index(resolve_roles(motion.skeleton).names["root"])
+    return metrics.motion_energy(motion.global_positions(), motion.fps, ENERGY_WINDOW_SECONDS,
+                                 root_index=root)
+
+
+def _bone_parents(motion: Motion) -> np.ndarray:
+    """Parents for the bone-stretch check: a joint whose local translation moves (the hips
+    carrying the world position) is no bone of its parent."""
+    parents = np.array(motion.skeleton.parents)
+    moving = np.ptp(motion.positions, axis=0).max(-1) > 0.05 if motion.num_frames else []
+    parents[np.asarray(moving, dtype=bool)] = -1
+    return parents
+
+
+def real_reference(labels: Sequence[str], locomotion: bool = True) -> RealReference:
+    """Reference statistics from the dataset-1 clips of ``labels`` (all splits: a reference
+    of what real motion does, not a test set). Needs the data (see :mod:`emotive.data`)."""
+    from emotive.data.clips import load_clips
+
+    clips = [c for c in load_clips("bandai-namco-1", locomotion=locomotion)
+             if c.info.emotion in labels]
+    jerks, energy, skates = [], {label: [] for label in labels}, []
+    for clip in clips:
+        m = clip.motion
+        points, roles, _ = _points(m)
+        if m.duration >= ENERGY_WINDOW_SECONDS:
+            energy[clip.info.emotion].append(_energy(m))
+        if m.num_frames > 8:
+            jerks.append(metrics.windowed_jerk(points, m.fps))
+        skates.append(float(metrics.foot_skating(points, roles, m.fps).mean_speed))
+    return RealReference(
+        tuple(labels), np.concatenate(jerks),
+        {k: np.concatenate(v) if v else np.zeros(0) for k, v in energy.items()},
+        float(np.mean(skates)),
+        f"bandai-namco-1 {'locomotion ' if locomotion else ''}clips of {', '.join(labels)} "
+        f"({len(clips)} clips)",
+    )
+
+
+def _table3(intended: np.ndarray, perceived: np.ndarray) -> dict:
+    """The main paper's per-gait test: 2-sample Anderson-Darling of two emotion vectors."""
+    try:
+        result = anderson_darling_ksamp([intended, perceived])
+    except StatsInputError as exc:
+        return {"statistic": None, "p_value": None, "reject": None, "note": str(exc)}
+    return {"statistic": result.statistic, "p_value": result.p_value,
+            "p_value_bounded": result.p_value_bounded, "reject": result.p_value < ALPHA}
+
+
+def _on_classifier_labels(item: EvaluatedMotion, labels: tuple[str, ...]) -> np.ndarray | None:
+    """The item's intended weights over the classifier's labels, or ``None`` if it intends
+    labels the classifier does not know."""
+    index = {label: k for k, label in enumerate(item.labels)}
+    foreign = [k for label, k in index.items() if label not in labels]
+    if foreign and item.intended[:, foreign].max() > 1e-6:
+        return None
+    out = np.zeros((len(item.intended), len(labels)))
+    for k, label in enumerate(labels):
+        if label in index:
+            out[:, k] = item.intended[:, index[label]]
+    return out / np.maximum(out.sum(-1, keepdims=True), 1e-12)
+
+
+def emotion_suite(items: Sequence[EvaluatedMotion], classifier: EmotionClassifier) -> dict:
+    """Intended versus perceived emotion (see the module docstring)."""
+    labels = classifier.labels
+    n = len(labels)
+    confusion = np.zeros((n, n), dtype=np.int64)
+    rows, skipped = [], []
+    for item in items:
+        intended = _on_classifier_labels(item, labels)
+        if intended is None or item.motion.duration < classifier.config.min_seconds:
+            skipped.append(item.name)
+            continue
+        times, prob = classifier.classify(item.motion, WINDOW_SECONDS, HOP_SECONDS)
+        frames = np.clip(np.round(times * item.motion.fps).astype(int), 0, len(intended) - 1)
+        want = intended[frames].argmax(-1)
+        got = prob.argmax(-1)
+        np.add.at(confusion, (want, got), 1)
+        mean_intended, mean_perceived = intended.mean(0), prob.mean(0)
+        rows.append({
+            "name": item.name,
+            "intended": dict(zip(labels, map(float, mean_intended), strict=True)),
+            "perceived": dict(zip(labels, map(float, mean_perceived), strict=True)),
+            "window_accuracy": float((want == got).mean()),
+            "table3": _table3(mean_intended, mean_perceived),
+        })
+    windows = int(confusion.sum())
+    accuracy = float(np.trace(confusion) / windows) if windows else None
+    real = classifier.metrics.get("test", {}).get("window_accuracy")
+    return {
+        "labels": list(labels),
+        "items": rows,
+        "skipped": skipped,
+        "windows": windows,
+        "window_accuracy": accuracy,
+        "real_window_accuracy": real,
+        "share_of_real_accuracy": accuracy / real if accuracy is not None and real else None,
+        "confusion": confusion.tolist(),
+        "table3_rejected": sum(bool(r["table3"]["reject"]) for r in rows),
+    }
+
+
+def transition_suite(items: Sequence[EvaluatedMotion], classifier: EmotionClassifier,
+                     reference: RealReference | None) -> dict:
+    """Emotion changes: perceived start and end, smoothness (see the module docstring)."""
+    labels = classifier.labels
+    rows = []
+    for item in items:
+        changes = item.changes
+        intended = _on_classifier_labels(item, labels)
+        if not len(changes) or intended is None:
+            continue
+        times, prob = classifier.classify(item.motion, WINDOW_SECONDS, HOP_SECONDS)
+        frames = np.clip(np.round(times * item.motion.fps).astype(int), 0, len(intended) - 1)
+        row = {
+            "name": item.name,
+            "change_seconds": (changes / item.motion.fps).tolist(),
+            "initial": _table3(intended[frames[0]], prob[0]),
+            "final": _table3(intended[frames[-1]], prob[-1]),
+            "initial_perceived": labels[int(prob[0].argmax())],
+            "final_perceived": labels[int(prob[-1].argmax())],
+            "initial_intended": labels[int(intended[frames[0]].argmax())],
+            "final_intended": labels[int(intended[frames[-1]].argmax())],
+        }
+        if reference is not None:
+            points, _, _ = _points(item.motion)
+            smooth = metrics.transition_smoothness(points, item.motion.fps, changes,
+                                                   reference.window_jerk)
+            row["jerk"] = np.asarray(smooth.jerk).tolist()
+            row["jerk_percentile"] = np.asarray(smooth.percentile).tolist()
+            row["smooth"] = not bool(np.any(smooth.exceeds))
+            row["jerk_threshold"] = float(smooth.threshold)
+        rows.append(row)
+    return {"items": rows, "reference": reference.source if reference else None}
+
+
+def path_suite(items: Sequence[EvaluatedMotion]) -> dict:
+    """How closely items with a path follow it."""
+    rows = []
+    for item in items:
+        if item.path is None:
+            continue
+        points, roles, _ = _points(item.motion)
+        result = metrics.path_following(points, roles, item.path)
+        rows.append({
+            "name": item.name,
+            "mean_position_deviation": float(result.position_deviation.mean()),
+            "max_position_deviation": float(result.position_deviation.max()),
+            "mean_heading_deviation": float(result.heading_deviation.mean()),
+            "trajectory": points[:, roles.index["root"]][:, [0, 2]].tolist(),
+            "path": np.asarray(item.path).tolist(),
+        })
+    return {"items": rows}
+
+
+def longrun_suite(items: Sequence[EvaluatedMotion], reference: RealReference | None) -> dict:
+    """Energy over time and stability against real motion of the same emotion."""
+    rows = []
+    for item in items:
+        if item.motion.duration < ENERGY_WINDOW_SECONDS:
+            continue
+        energy = _energy(item.motion)
+        # The emotion intended in each window, and the real energy band of that emotion.
+        n = round(ENERGY_WINDOW_SECONDS * item.motion.fps)
+        centres = np.minimum((np.arange(len(energy)) + 0.5) * n, len(item.intended) - 1)
+        window_labels = [item.labels[k] for k in item.intended[centres.astype(int)].argmax(-1)]
+        label = item.labels[int(item.intended.mean(0).argmax())]
+        real = reference.energy if reference is not None else {}
+        ref_level = float(np.median(real[label])) if len(real.get(label, [])) else None
+        report = metrics.stability_report(
+            item.motion.global_positions(), item.motion.fps, _bone_parents(item.motion),
+            reference_energy=ref_level, window_s=ENERGY_WINDOW_SECONDS,
+            root_index=item.motion.skeleton.index(resolve_roles(item.motion.skeleton)
+                                                  .names["root"]),
+        )
+        row = {
+            "name": item.name, "label": label, "energy": energy.tolist(),
+            "window_labels": window_labels,
+            "stable": bool(report.stable), "collapsed_at": report.collapse_time,
+            "exploded_at": report.explosion_time,
+        }
+        bands = {k: np.percentile(v, [5, 95]) for k, v in real.items() if len(v)}
+        if all(k in bands for k in window_labels):
+            lo = np.array([bands[k][0] for k in window_labels])
+            hi = np.array([bands[k][1] for k in window_labels])
+            row["real_energy_band"] = {k: [float(a), float(b)] for k, (a, b) in bands.items()}
+            row["share_in_real_band"] = float(((energy >= lo) & (energy <= hi)).mean())
+        rows.append(row)
+    return {"items": rows, "reference": reference.source if reference else None}
+
+
+def quality_suite(items: Sequence[EvaluatedMotion], reference: RealReference | None) -> dict:
+    """Foot skating and ground penetration per item, and skating relative to real motion."""
+    rows = []
+    for item in items:
+        points, roles, _ = _points(item.motion)
+        skate = metrics.foot_skating(points, roles, item.motion.fps)
+        depth = metrics.ground_penetration(points, roles)
+        rows.append({
+            "name": item.name, "skate_speed": float(skate.mean_speed),
+            "skate_ratio": float(skate.ratio), "penetration_max": float(depth.max),
+        })
+    mean_skate = float(np.mean([r["skate_speed"] for r in rows])) if rows else None
+    real = reference.skate if reference is not None else None
+    return {
+        "items": rows, "mean_skate_speed": mean_skate, "real_skate_speed": real,
+        "skate_vs_real": mean_skate / real if mean_skate is not None and real else None,
+    }
