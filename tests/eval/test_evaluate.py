@@ -159,7 +159,8 @@ def test_a_generator_is_evaluated_like_a_folder(folder, classifier):
     items = from_generator(generator, requests)
     assert items[-1].changes.size == 1 and items[0].path is not None
     results, info = run_suites(Subject("replay", generator=generator), "all", classifier)
-    assert set(results) == {"emotion", "transition", "path", "longrun", "quality", "speed"}
+    assert set(results) == {"emotion", "transition", "path", "longrun", "quality", "affect",
+                            "speed"}
     assert [r["agents"] for r in results["speed"]["rows"]] == [1, 10]
     assert results["speed"]["rows"][0]["agent_frames_per_second"] > 0
     assert len(results["transition"]["items"]) == 2
@@ -190,7 +191,8 @@ def test_cli_writes_a_complete_report(folder, tmp_path, monkeypatch, capsys):
     assert names == ["confusion.png", "energy.png", "intended_vs_perceived.png", "metrics.json",
                      "report.md"]
     metrics = json.loads((out / "metrics.json").read_text())
-    assert set(metrics["suites"]) == {"emotion", "transition", "path", "longrun", "quality"}
+    assert set(metrics["suites"]) == {"emotion", "transition", "path", "longrun", "quality",
+                                      "affect"}
     text = (out / "report.md").read_text()
     for heading in ("## emotion", "## longrun", "## quality", "![confusion.png]"):
         assert heading in text
@@ -231,3 +233,35 @@ def test_table1_suite_for_a_predictor(bandai1_dir, classifier):
     assert zero["windows"] == at10["windows"] > 0
     assert 0 < zero["pose"] < 1 and zero["rotation"] > 0
     assert "| Zero velocity |" in results["table1"]["markdown"]
+
+
+@pytest.mark.data
+def test_affect_suite_distances_and_diversity(folder, classifier):
+    from dataclasses import replace
+
+    items = [i for i in read_folder(folder) if "walk_angry" in i.name or "happy" in i.name]
+    reference = suites.real_reference(classifier.labels)
+    angry = next(i for i in items if "angry" in i.name)
+    own = suites.affect_features(angry.motion)
+    shift = np.linspace(0.1, 0.3, own.shape[1])
+    # Real "held-out" angry motion equal to the item, and happy equal to it shifted by a
+    # constant: same covariance, so the Fréchet distance is |shift|^2.
+    fake = replace(reference, held_out={**reference.held_out, "angry": own,
+                                        "happy": suites.affect_features(items[-1].motion)
+                                        + shift})
+    rows = {r["label"]: r for r in suites.affect_suite(items, fake)["labels"]}
+    assert rows["angry"]["frechet_to_real"] == pytest.approx(0.0, abs=1e-6)
+    assert rows["happy"]["frechet_to_real"] == pytest.approx(float(shift @ shift), rel=1e-6)
+    assert "diversity" not in rows["angry"]
+    twice = [items[-1], replace(items[-1], name="again")]
+    row = suites.affect_suite(twice, fake)["labels"][0]
+    assert row["diversity"] == pytest.approx(0.0) and len(row["items"]) == 2
+
+
+@pytest.mark.data
+def test_quality_suite_jerk_and_skate_against_real(folder, classifier):
+    reference = suites.real_reference(classifier.labels)
+    result = suites.quality_suite(read_folder(folder), reference)
+    assert result["real_jerk"] == pytest.approx(reference.jerk)
+    assert result["jerk_vs_real"] == pytest.approx(result["mean_jerk"] / reference.jerk)
+    assert all(r["jerk"] > 0 and r["skate_speed"] >= 0 for r in result["items"])

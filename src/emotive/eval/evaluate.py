@@ -8,8 +8,8 @@ What can be evaluated (:func:`resolve_subject`):
 * a generator (:class:`~emotive.eval.sources.Generator`), asked for the standard requests.
 
 Suites (:data:`SUITES`) declare what they need: motions with intended emotions (``emotion``,
-``transition``, ``path``, ``longrun``, ``quality``), a predictor (``table1``) or a generator
-(``speed``). ``all`` runs every suite the subject supports.
+``transition``, ``path``, ``longrun``, ``quality``, ``affect``), a predictor (``table1``) or a
+generator (``speed``). ``all`` runs every suite the subject supports.
 """
 
 from __future__ import annotations
@@ -165,6 +165,7 @@ SUITES: dict[str, tuple[str, Callable[[Context], dict]]] = {
     "path": ("motions", lambda ctx: suites.path_suite(ctx.motions)),
     "longrun": ("motions", lambda ctx: suites.longrun_suite(ctx.motions, ctx.reference)),
     "quality": ("motions", lambda ctx: suites.quality_suite(ctx.motions, ctx.reference)),
+    "affect": ("motions", lambda ctx: suites.affect_suite(ctx.motions, ctx.reference)),
     "speed": ("generator", _speed),
 }
 

@@ -189,12 +189,25 @@ def _section(name: str, result: dict) -> list[str]:
                        f"{_fmt(r.get('share_in_real_band'))} |")
     elif name == "quality":
         out += [f"Mean skate speed {_fmt(result['mean_skate_speed'])} m/s; real motion "
-                f"{_fmt(result['real_skate_speed'])} m/s; ratio {_fmt(result['skate_vs_real'])}.",
-                "", "| item | skate (m/s) | skating share | max penetration (m) |",
-                "|---|---:|---:|---:|"]
+                f"{_fmt(result['real_skate_speed'])} m/s; ratio {_fmt(result['skate_vs_real'])}. "
+                f"Mean jerk {_fmt(result['mean_jerk'], 1)} m/s^3; real motion "
+                f"{_fmt(result['real_jerk'], 1)}; ratio {_fmt(result['jerk_vs_real'])}.",
+                "", "| item | skate (m/s) | skating share | max penetration (m) | jerk (m/s^3) |",
+                "|---|---:|---:|---:|---:|"]
         for r in result["items"]:
             out.append(f"| {r['name']} | {_fmt(r['skate_speed'])} | {_fmt(r['skate_ratio'])} | "
-                       f"{_fmt(r['penetration_max'])} |")
+                       f"{_fmt(r['penetration_max'])} | {_fmt(r['jerk'], 1)} |")
+    elif name == "affect":
+        out += ["Fréchet distance of the 18 affective + 8 movement features per frame against "
+                "real held-out motion of the same emotion; the last column is the same distance "
+                "from real training motion (the level of real data).", "",
+                "| emotion | items | frames | Fréchet to real | real train to real | diversity |",
+                "|---|---:|---:|---:|---:|---:|"]
+        for r in result["labels"]:
+            out.append(f"| {r['label']} | {len(r['items'])} | {r['frames']} | "
+                       f"{_fmt(r.get('frechet_to_real'), 2)} | "
+                       f"{_fmt(r.get('frechet_real_train_to_real'), 2)} | "
+                       f"{_fmt(r.get('diversity'), 2)} |")
     elif name == "speed":
         out += ["| agents | frames | seconds | agent-frames/s |", "|---:|---:|---:|---:|"]
         for r in result["rows"]:

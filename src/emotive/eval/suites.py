@@ -16,7 +16,12 @@ plots.
 * ``longrun``: motion energy (mean joint speed, root-relative) per second, collapse and
   explosion detection against the energy of real motion of the item's dominant emotion, and
   the share of seconds inside that real 5-95 % range.
-* ``quality``: foot skating and ground penetration, against real motion.
+* ``quality``: foot skating, ground penetration and jerk, against real motion.
+* ``affect``: per emotion, the Fréchet distance between the per-frame affective and movement
+  features (18 + 8 columns of :func:`emotive.eval.classifier.frame_features`) of the items and
+  those of real held-out motion of that emotion, beside the same distance between real
+  training and real held-out motion (what "as close as real data" looks like); and the
+  diversity between items of one emotion.
 
 Real reference statistics come from :func:`real_reference` (real clips of the labels).
 
@@ -54,6 +59,9 @@ class RealReference:
         window_jerk: ``(N,)`` windowed jerk samples of real clips (m/s^3).
         energy: label -> ``(N,)`` per-second motion energy samples (m/s).
         skate: mean planted-foot speed of the real clips (m/s).
+        jerk: mean jerk of the real clips (m/s^3).
+        held_out: label -> ``(N, 26)`` affect features of the real val and test clips.
+        train: label -> ``(N, 26)`` affect features of the real train clips.
         source: which clips.
     """
 
@@ -61,7 +69,25 @@ class RealReference:
     window_jerk: np.ndarray
     energy: dict[str, np.ndarray]
     skate: float
+    jerk: float
+    held_out: dict[str, np.ndarray]
+    train: dict[str, np.ndarray]
     source: str
+
+
+#: Columns of :func:`emotive.eval.classifier.frame_features` that the affect suite compares:
+#: the 18 affective and 8 movement features (the body-frame pose and velocity are left out).
+AFFECT_COLUMNS = slice(-26, None)
+#: Frame rate of the affect features.
+AFFECT_FPS = 15.0
+
+
+def affect_features(motion: Motion) -> np.ndarray:
+    """``(T', 26)`` affective and movement features of a clip at :data:`AFFECT_FPS`."""
+    from emotive.eval.classifier import frame_features
+
+    points, roles, _ = _points(motion)
+    return frame_features(points, roles, motion.fps, AFFECT_FPS)[:, AFFECT_COLUMNS]
 
 
 def _points(motion: Motion) -> tuple[np.ndarray, object, int]:
@@ -89,10 +115,14 @@ def real_reference(labels: Sequence[str], locomotion: bool = True) -> RealRefere
     """Reference statistics from the dataset-1 clips of ``labels`` (all splits: a reference
     of what real motion does, not a test set). Needs the data (see :mod:`emotive.data`)."""
     from emotive.data.clips import load_clips
+    from emotive.data.splits import split_clips
 
     clips = [c for c in load_clips("bandai-namco-1", locomotion=locomotion)
              if c.info.emotion in labels]
-    jerks, energy, skates = [], {label: [] for label in labels}, []
+    part = {c.name: split for split, members in split_clips(clips).items() for c in members}
+    jerks, energy, skates, mean_jerk = [], {label: [] for label in labels}, [], []
+    held_out: dict[str, list[np.ndarray]] = {label: [] for label in labels}
+    train: dict[str, list[np.ndarray]] = {label: [] for label in labels}
     for clip in clips:
         m = clip.motion
         points, roles, _ = _points(m)
@@ -100,11 +130,18 @@ def real_reference(labels: Sequence[str], locomotion: bool = True) -> RealRefere
             energy[clip.info.emotion].append(_energy(m))
         if m.num_frames > 8:
             jerks.append(metrics.windowed_jerk(points, m.fps))
+            mean_jerk.append(float(metrics.jerk(points, m.fps).mean()))
         skates.append(float(metrics.foot_skating(points, roles, m.fps).mean_speed))
+        target = train if part[clip.name] == "train" else held_out
+        target[clip.info.emotion].append(affect_features(m))
+
+    def stack(table: dict[str, list[np.ndarray]]) -> dict[str, np.ndarray]:
+        return {k: np.concatenate(v) if v else np.zeros((0, 26)) for k, v in table.items()}
+
     return RealReference(
         tuple(labels), np.concatenate(jerks),
         {k: np.concatenate(v) if v else np.zeros(0) for k, v in energy.items()},
-        float(np.mean(skates)),
+        float(np.mean(skates)), float(np.mean(mean_jerk)), stack(held_out), stack(train),
         f"bandai-namco-1 {'locomotion ' if locomotion else ''}clips of {', '.join(labels)} "
         f"({len(clips)} clips)",
     )
@@ -273,10 +310,40 @@ def quality_suite(items: Sequence[EvaluatedMotion], reference: RealReference | N
         rows.append({
             "name": item.name, "skate_speed": float(skate.mean_speed),
             "skate_ratio": float(skate.ratio), "penetration_max": float(depth.max),
+            "jerk": float(metrics.jerk(points, item.motion.fps).mean())
+            if item.motion.num_frames > 3 else None,
         })
     mean_skate = float(np.mean([r["skate_speed"] for r in rows])) if rows else None
+    jerks = [r["jerk"] for r in rows if r["jerk"] is not None]
+    mean_jerk = float(np.mean(jerks)) if jerks else None
     real = reference.skate if reference is not None else None
+    real_jerk = reference.jerk if reference is not None else None
     return {
         "items": rows, "mean_skate_speed": mean_skate, "real_skate_speed": real,
         "skate_vs_real": mean_skate / real if mean_skate is not None and real else None,
+        "mean_jerk": mean_jerk, "real_jerk": real_jerk,
+        "jerk_vs_real": mean_jerk / real_jerk if mean_jerk is not None and real_jerk else None,
+        "reference": reference.source if reference else None,
     }
+
+
+def affect_suite(items: Sequence[EvaluatedMotion], reference: RealReference | None) -> dict:
+    """Affective realism and diversity per emotion (see the module docstring)."""
+    by_label: dict[str, list[tuple[str, np.ndarray]]] = {}
+    for item in items:
+        label = item.labels[int(item.intended.mean(0).argmax())]
+        by_label.setdefault(label, []).append((item.name, affect_features(item.motion)))
+    rows = []
+    for label, members in by_label.items():
+        frames = np.concatenate([f for _, f in members])
+        row: dict = {"label": label, "items": [n for n, _ in members], "frames": len(frames)}
+        real = reference.held_out.get(label) if reference is not None else None
+        train = reference.train.get(label) if reference is not None else None
+        if real is not None and len(real) >= 2 and len(frames) >= 2:
+            row["frechet_to_real"] = metrics.frechet_distance(frames, real)
+            if train is not None and len(train) >= 2:
+                row["frechet_real_train_to_real"] = metrics.frechet_distance(train, real)
+        if len(members) >= 2:
+            row["diversity"] = metrics.diversity(np.stack([f.mean(0) for _, f in members]))
+        rows.append(row)
+    return {"labels": rows, "reference": reference.source if reference else None}
