@@ -174,8 +174,10 @@ def pose_error(
     Args:
         predicted: ``(..., T, J, 3)`` predicted positions, metres.
         target: ``(..., T, J, 3)`` ground-truth positions, metres.
-        root_index: joint subtracted from every joint and left out of the mean (the root is
-            joint 0 of every rig); ``None`` compares world positions of all joints.
+        root_index: joint subtracted from every joint and left out of the mean; pass the
+            index of the ``root`` role (``Hips`` on the Bandai rig, whose joint 0 is a static
+            top node: :func:`emotive.eval.table1.table1` does); ``None`` compares world
+            positions of all joints.
         scale: the character size ``D``, broadcastable to ``(...)``; ``None`` uses the
             target's :func:`bounding_box_diagonal`. Pass ``1.0`` for errors in metres.
         reduction: ``"mean"`` returns ``(...)``, ``"frame"`` the mean over joints ``(..., T)``,

@@ -1,0 +1,153 @@
+"""Typed config of the emotive gait network: every size, label, loss weight and switch.
+
+The config is saved with every checkpoint (:meth:`GaitConfig.to_dict` is JSON-safe) so that
+a checkpoint alone rebuilds its network.
+
+Paper sizes. Emotive Gaits (Bhattacharya et al. 2020, section 4) fixes the layer counts
+(three fully connected layers in each of ``FC_enc1`` and ``FC_enc2``, one GRU, one layer in
+``FC_root``, two in ``FC_versors``, one in each of ``FC_h``, ``FC_s``, ``FC_delta``) and ELU
+on every fully connected layer (section 5.3), but names the widths only as symbols ``H_1``
+(``FC_enc1`` output), ``H_2`` (``FC_enc2`` output), ``H_3`` (GRU) and ``H_4`` (``FC_root``)
+without values. The defaults here are therefore our own, chosen small enough to train on two
+CPU cores; the loss weights default to the paper's 1.0 (section 5.3: "We used a value of 1.0
+for all of the performances reported").
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass, fields
+from typing import Any
+
+from emotive.data.emotion import DEFAULT_LABELS, check_labels
+
+#: Per-frame inputs of the network besides rotations and emotion, in column order.
+AFFECTIVE_SIZE = 18
+#: ``[sin theta, cos theta, omega, s_lowpass, kappa]``.
+MOVEMENT_INPUT_NAMES: tuple[str, ...] = (
+    "sin_step_phase", "cos_step_phase", "step_frequency", "root_speed_lowpass", "curvature",
+)
+#: ``[h, s, delta]``, input and predicted.
+ROOT_FEATURE_NAMES: tuple[str, ...] = ("root_height", "root_speed", "orientation_difference")
+
+_POSITIVE_INTS = (
+    "num_joints", "enc1_hidden", "enc1_out", "enc2_hidden", "enc2_out", "gru_hidden",
+    "gru_layers", "root_hidden", "versor_hidden",
+)
+_WEIGHTS = (
+    "motion_weight", "pose_weight", "affective_weight", "root_weight", "foot_contact_weight",
+    "versor_weight",
+)
+
+
+@dataclass(frozen=True)
+class GaitConfig:
+    """Sizes, labels, loss weights and ablation switches of :class:`GaitNetwork`.
+
+    Attributes:
+        labels: the ``C`` emotion labels of the emotion vector ``m``, in order.
+        num_joints: ``J``, joints whose local rotations the network reads and predicts (the
+            Bandai rig: 22, including the static ``joint_Root``).
+        fps: frame rate of the motion the network runs at; the per-frame features (``s``,
+            ``omega``, ``kappa``) and the recurrence are tied to it.
+        enc1_hidden: width of the two hidden layers of ``FC_enc1``.
+        enc1_out: ``H_1``, output width of ``FC_enc1``.
+        enc2_hidden: width of the two hidden layers of ``FC_enc2``.
+        enc2_out: ``H_2``, output width of ``FC_enc2``.
+        gru_hidden: ``H_3``, hidden size of ``GRU_versors``.
+        gru_layers: stacked GRU layers (the paper: one).
+        root_hidden: ``H_4``, output width of ``FC_root``.
+        versor_hidden: hidden width of the two-layer ``FC_versors``.
+        head_hidden: hidden width of each of ``FC_h``, ``FC_s``, ``FC_delta``; 0 makes each a
+            single linear layer, as in the paper.
+        motion_weight: ``lambda_motion``.
+        pose_weight: ``lambda_pose``.
+        affective_weight: ``lambda_aff``.
+        root_weight: ``lambda_root``.
+        foot_contact_weight: ``lambda_ft_ct``.
+        versor_weight: ``lambda_versor`` of the unit-norm penalty inside the motion loss. The
+            paper gives no value; 0.01 is QuaterNet's (Pavllo et al. 2018), on which the paper
+            builds.
+        use_affective: read the 18 affective features and train with the affective loss.
+            ``False`` is the paper's first ablation (section 5.6): ``FC_enc1`` reads only
+            ``m`` and the affective loss is dropped.
+        use_root_loss: train with the root loss. ``False`` is the paper's second ablation; the
+            network still predicts ``h, s, delta``.
+    """
+
+    labels: tuple[str, ...] = DEFAULT_LABELS
+    num_joints: int = 22
+    fps: float = 30.0
+    enc1_hidden: int = 64
+    enc1_out: int = 32
+    enc2_hidden: int = 64
+    enc2_out: int = 32
+    gru_hidden: int = 192
+    gru_layers: int = 1
+    root_hidden: int = 32
+    versor_hidden: int = 192
+    head_hidden: int = 0
+    motion_weight: float = 1.0
+    pose_weight: float = 1.0
+    affective_weight: float = 1.0
+    root_weight: float = 1.0
+    foot_contact_weight: float = 1.0
+    versor_weight: float = 0.01
+    use_affective: bool = True
+    use_root_loss: bool = True
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "labels", check_labels(self.labels))
+        for name in _POSITIVE_INTS:
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise ValueError(f"GaitConfig.{name} must be a positive integer, got {value!r}")
+        if isinstance(self.head_hidden, bool) or not isinstance(self.head_hidden, int) or (
+            self.head_hidden < 0
+        ):
+            raise ValueError(
+                f"GaitConfig.head_hidden must be a non-negative integer, got {self.head_hidden!r}"
+            )
+        if not self.fps > 0:
+            raise ValueError(f"GaitConfig.fps must be positive, got {self.fps!r}")
+        object.__setattr__(self, "fps", float(self.fps))
+        for name in _WEIGHTS:
+            value = float(getattr(self, name))
+            if not value >= 0:
+                raise ValueError(f"GaitConfig.{name} must be a non-negative number, got {value!r}")
+            object.__setattr__(self, name, value)
+        for name in ("use_affective", "use_root_loss"):
+            if not isinstance(getattr(self, name), bool):
+                raise ValueError(f"GaitConfig.{name} must be true or false")
+
+    @property
+    def num_labels(self) -> int:
+        """``C``, the length of the emotion vector."""
+        return len(self.labels)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-safe dict of every field (tuples as lists)."""
+        return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
+
+    @classmethod
+    def from_dict(cls, values: dict[str, Any]) -> GaitConfig:
+        """The config saved by :meth:`to_dict`.
+
+        Raises:
+            ValueError: a key that is not a field (a checkpoint of another model or version).
+        """
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(values) - known)
+        if unknown:
+            raise ValueError(f"unknown GaitConfig fields {unknown}; known: {sorted(known)}")
+        values = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items()}
+        return cls(**values)
+
+    def to_json(self) -> str:
+        """The config as a JSON text."""
+        return json.dumps(self.to_dict(), sort_keys=True)
+
+    @classmethod
+    def from_json(cls, text: str) -> GaitConfig:
+        """The config from :meth:`to_json` text."""
+        return cls.from_dict(json.loads(text))
