@@ -1,0 +1,57 @@
+"""Trajectories and per-chain inverse kinematics (issue 7, section 1).
+
+Five IK chains (two legs, two arms with elbow targets, head-torso) with joint limits, a
+damped least squares solver warm-started from the previous frame, extraction of pelvis,
+end-effector and elbow trajectories in chain frames, and helpers built on them:
+:func:`reconstruct` rebuilds a clip from its own trajectories, :func:`pin_feet` keeps planted
+feet still (foot-plant cleanup for the generators).
+"""
+
+from emotive.ik.api import IKResult, pin_feet, reconstruct, solve_chains
+from emotive.ik.chains import (
+    CHAIN_NAMES,
+    CHAIN_SPECS,
+    Chain,
+    ChainSpec,
+    IKError,
+    JointSpec,
+    build_chain,
+    resolve_chains,
+)
+from emotive.ik.solver import ChainSolution, Unreachable, solve_chain
+from emotive.ik.trajectories import (
+    PelvisTrajectory,
+    Trajectories,
+    chain_targets,
+    extract_trajectories,
+    integrate_pelvis,
+    pelvis_trajectory,
+    to_frame,
+    to_world,
+)
+
+__all__ = [
+    "CHAIN_NAMES",
+    "CHAIN_SPECS",
+    "Chain",
+    "ChainSolution",
+    "ChainSpec",
+    "IKError",
+    "IKResult",
+    "JointSpec",
+    "PelvisTrajectory",
+    "Trajectories",
+    "Unreachable",
+    "build_chain",
+    "chain_targets",
+    "extract_trajectories",
+    "integrate_pelvis",
+    "pelvis_trajectory",
+    "pin_feet",
+    "reconstruct",
+    "resolve_chains",
+    "solve_chain",
+    "solve_chains",
+    "to_frame",
+    "to_world",
+]
