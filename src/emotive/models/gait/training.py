@@ -1,0 +1,516 @@
+"""Training loop of the emotive gait network (Emotive Gaits, section 5.3) with checkpoints.
+
+Legend: ``B`` windows of a batch, ``T`` input frames per window, ``J`` joints, ``C`` labels.
+
+Recipe (the paper's): Adam with learning rate ``1e-3`` decayed by ``0.999`` per epoch, and
+curriculum learning by scheduled sampling: in epoch ``e`` (from 0) the teacher-forcing ratio is
+``0.995 ** e``. Each input frame after the first of a batch is, with that probability, the
+data (teacher-forced) and otherwise the network's own prediction of it: predicted rotations,
+predicted root features ``[h, s, delta]`` and the affective features of the predicted pose
+(forward kinematics with :func:`~emotive.models.gait.losses.rig_positions`). The movement
+inputs and the emotion stay the data's: they are the controls given at animation time. The
+choice is drawn per frame for the whole batch, so that runs of teacher-forced frames go
+through the GRU in one call. As in scheduled sampling (Bengio et al. 2015), a fed-back
+prediction is treated as data: no gradient flows through it.
+
+The loss is :class:`~emotive.models.gait.losses.GaitLoss` on every predicted frame; each term
+is logged. Validation runs every epoch on the validation split, with the network fed its own
+predictions after the first frame (``val_teacher_forcing = 0``, as when animating), and the
+checkpoint with the lowest total validation loss is kept as ``best.pt``.
+
+Output folder: ``last.pt`` after every epoch, ``best.pt``, ``log.csv`` (one row per epoch:
+every loss term on train and val, learning rate, teacher-forcing ratio, seconds), all written
+atomically. A checkpoint is ``{"config", "train", "state", "optimizer", "epoch" (epochs done),
+"rng", "best_val", "history"}``. Ctrl-C (``KeyboardInterrupt``) writes ``last.pt`` with the
+weights reached and re-raises.
+
+Determinism: on CPU, a seed gives the same run (``torch.manual_seed`` for the weights, a NumPy
+generator for batch order and teacher forcing), and resuming from a checkpoint written at the
+end of an epoch gives the same results as not stopping. A checkpoint written by Ctrl-C inside
+an epoch resumes by running that epoch again from its start (same batch order) with the
+weights reached, so it is not bit-identical to an uninterrupted run.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import time
+import tomllib
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, fields
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from emotive.data.emotion import ALL_LABELS
+from emotive.errors import EmotiveError
+from emotive.models.gait.config import GaitConfig
+from emotive.models.gait.data import DEFAULT_DATASETS, GaitBatch, GaitData, load_gait_data
+from emotive.models.gait.losses import LOSS_TERMS, GaitLoss, GaitRig, rig_positions
+from emotive.models.gait.network import GaitInputs, GaitNetwork, GaitOutputs
+
+#: Names of the logged loss values: the five terms then their weighted sum.
+LOG_TERMS: tuple[str, ...] = (*LOSS_TERMS, "total")
+#: Columns of ``log.csv``.
+CSV_COLUMNS: tuple[str, ...] = (
+    "epoch",
+    *(f"train_{t}" for t in LOG_TERMS),
+    *(f"val_{t}" for t in LOG_TERMS),
+    "lr", "teacher_forcing", "seconds",
+)
+
+
+class ConfigError(EmotiveError):
+    """A training config file that is missing or holds a bad key or value."""
+
+
+@dataclass(frozen=True)
+class GaitTrainSettings:
+    """How the gait network is trained (the ``[train]`` section of ``configs/gait.toml``).
+
+    Attributes:
+        epochs: epochs to train in all (the paper: 500).
+        batch_size: windows per batch.
+        window: ``T``, input frames per window (each window holds ``T + 1`` frames).
+        stride: frames between window starts within a clip.
+        learning_rate: Adam's initial learning rate.
+        lr_decay: factor on the learning rate per epoch.
+        teacher_forcing_decay: factor on the teacher-forcing ratio per epoch (``beta``).
+        val_teacher_forcing: teacher-forcing ratio of the validation runs.
+        datasets: registry names of the data sets (locomotion clips only).
+        split_seed: seed of the split by clip.
+        max_clips: for quick runs, at most this many clips per split and data set (0: all).
+    """
+
+    epochs: int = 500
+    batch_size: int = 32
+    window: int = 60
+    stride: int = 15
+    learning_rate: float = 1e-3
+    lr_decay: float = 0.999
+    teacher_forcing_decay: float = 0.995
+    val_teacher_forcing: float = 0.0
+    datasets: tuple[str, ...] = DEFAULT_DATASETS
+    split_seed: int = 0
+    max_clips: int = 0
+
+    def __post_init__(self) -> None:
+        for name, low in (("epochs", 1), ("batch_size", 1), ("window", 1), ("stride", 1),
+                          ("split_seed", 0), ("max_clips", 0)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < low:
+                raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
+        for name in ("learning_rate", "lr_decay", "teacher_forcing_decay"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int | float) or not value > 0:
+                raise ValueError(f"{name} must be a positive number, got {value!r}")
+            object.__setattr__(self, name, float(value))
+        value = self.val_teacher_forcing
+        if isinstance(value, bool) or not isinstance(value, int | float) or not 0 <= value <= 1:
+            raise ValueError(f"val_teacher_forcing must be a number in [0, 1], got {value!r}")
+        object.__setattr__(self, "val_teacher_forcing", float(value))
+        if isinstance(self.datasets, str) or not self.datasets or not all(
+            isinstance(d, str) for d in self.datasets
+        ):
+            raise ValueError(f"datasets must be a non-empty list of names, got {self.datasets!r}")
+        object.__setattr__(self, "datasets", tuple(self.datasets))
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-safe dict of every field (tuples as lists)."""
+        return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
+
+
+def load_settings(path: str | Path) -> tuple[GaitConfig, GaitTrainSettings]:
+    """Read ``[model]`` (:class:`GaitConfig` fields) and ``[train]``
+    (:class:`GaitTrainSettings` fields) from a TOML file.
+
+    Missing keys keep their defaults, except that ``[model] labels`` defaults to
+    :data:`~emotive.data.emotion.ALL_LABELS` (every style a label of the emotion vector).
+
+    Raises:
+        ConfigError: the file is missing or not TOML, or has an unknown section, an unknown
+            key or a bad value; the message names the file and the key.
+    """
+    path = Path(path)
+    try:
+        doc = tomllib.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise ConfigError(f"{path}: config file not found") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"{path}: cannot read the config file ({exc})") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{path}: not valid TOML ({exc})") from None
+    unknown = sorted(set(doc) - {"model", "train"})
+    if unknown:
+        raise ConfigError(f"{path}: unknown section [{unknown[0]}]; known: [model], [train]")
+    built: list[Any] = []
+    for section, cls in (("model", GaitConfig), ("train", GaitTrainSettings)):
+        values = doc.get(section, {})
+        if not isinstance(values, dict):
+            raise ConfigError(f"{path}: {section} must be a [{section}] table")
+        known = [f.name for f in fields(cls)]
+        for key in values:
+            if key not in known:
+                raise ConfigError(
+                    f"{path}: unknown key [{section}] {key}; known: {', '.join(known)}"
+                )
+        values = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items()}
+        if cls is GaitConfig:
+            values.setdefault("labels", ALL_LABELS)
+        try:
+            built.append(cls(**values))
+        except (ValueError, TypeError, EmotiveError) as exc:
+            message = str(exc).removeprefix("GaitConfig.")
+            key = next((k for k in values if message.startswith(k)), None)
+            where = f"[{section}] {key}" if key else f"[{section}]"
+            raise ConfigError(f"{path}: {where}: {message}") from None
+    return built[0], built[1]
+
+
+@dataclass
+class GaitTrainResult:
+    """What :func:`train_gait` leaves.
+
+    Attributes:
+        network: the network after the last epoch.
+        history: one dict per epoch with the :data:`CSV_COLUMNS`.
+        out_dir: the folder of ``last.pt``, ``best.pt`` and ``log.csv``.
+        best_val: lowest total validation loss (``nan`` without validation windows).
+    """
+
+    network: GaitNetwork
+    history: list[dict[str, float]]
+    out_dir: Path
+    best_val: float
+
+    @property
+    def last_path(self) -> Path:
+        """The last checkpoint."""
+        return self.out_dir / "last.pt"
+
+    @property
+    def best_path(self) -> Path:
+        """The best checkpoint (lowest total validation loss)."""
+        return self.out_dir / "best.pt"
+
+
+def teacher_forcing_mask(frames: int, ratio: float, rng: np.random.Generator) -> np.ndarray:
+    """``(T,)`` bool, ``True`` where input frame ``t`` is the data; frame 0 always is.
+
+    Ratios 1 and 0 draw nothing from ``rng``, so fully teacher-forced and free-running runs
+    leave it untouched.
+    """
+    if ratio >= 1.0:
+        return np.ones(frames, dtype=bool)
+    mask = np.zeros(frames, dtype=bool) if ratio <= 0.0 else rng.random(frames) < ratio
+    mask[0] = True
+    return mask
+
+
+def rollout(network: GaitNetwork, batch: GaitBatch, mask: np.ndarray, rig: GaitRig
+            ) -> GaitOutputs:
+    """Run the network over the windows, feeding back its predictions where ``mask`` is off.
+
+    Args:
+        network: the network.
+        batch: ``B`` windows of ``T + 1`` frames.
+        mask: ``(T,)`` bool, ``True`` where the input frame is the data.
+        rig: the rig, for the affective features of predicted poses.
+
+    Returns:
+        Predictions for frames ``1 .. T``: ``(B, T, J, 4)``, ``(B, T, J, 4)``, ``(B, T, 3)``.
+    """
+    from emotive.features.affective import affective_features
+
+    inputs = batch.inputs()
+    frames = inputs.rotations.shape[1]
+    use_affective = network.config.use_affective
+    parts: list[GaitOutputs] = []
+    state = None
+    t = 0
+    while t < frames:
+        if mask[t]:
+            end = t + 1
+            while end < frames and mask[end]:
+                end += 1
+            seg = GaitInputs(
+                inputs.rotations[:, t:end],
+                inputs.affective[:, t:end] if use_affective else None,
+                inputs.emotion, inputs.movement[:, t:end], inputs.root[:, t:end],
+            )
+            out, state = network(seg, state)
+            t = end
+        else:
+            last = parts[-1]
+            rotations = last.rotations[:, -1].detach()
+            affective = None
+            if use_affective:
+                pose = rig_positions(rotations, batch.positions[:, t], rig)
+                affective = affective_features(pose, rig.roles)
+            frame = GaitInputs(rotations, affective, inputs.emotion, inputs.movement[:, t],
+                               last.root[:, -1].detach())
+            out, state = network.step(frame, state)
+            out = GaitOutputs(*(x.unsqueeze(1) for x in out))
+            t += 1
+        parts.append(out)
+    return GaitOutputs(*(torch.cat(xs, 1) for xs in zip(*parts, strict=True)))
+
+
+def _batches(n: int, size: int, order: np.ndarray | None = None) -> list[np.ndarray]:
+    idx = np.arange(n) if order is None else order
+    return [idx[i:i + size] for i in range(0, n, size)]
+
+
+def evaluate_loss(network: GaitNetwork, data: GaitData, loss: GaitLoss, batch_size: int,
+                  teacher_forcing: float = 0.0, seed: int = 0) -> dict[str, float]:
+    """Mean of each loss term over every window of ``data`` (weighted by windows).
+
+    Args:
+        network: the network (run in eval mode without gradients).
+        data: the windows.
+        loss: the loss.
+        batch_size: windows per batch.
+        teacher_forcing: teacher-forcing ratio (0: fed its own predictions after frame 0).
+        seed: seed of the teacher-forcing draws for ratios between 0 and 1.
+
+    Returns:
+        ``{term: value}`` for the active terms and ``total``.
+    """
+    rng = np.random.default_rng(seed)
+    sums: dict[str, float] = {}
+    network.eval()
+    with torch.no_grad():
+        for idx in _batches(len(data), batch_size):
+            batch = data.batch(idx)
+            outputs = rollout(network, batch, teacher_forcing_mask(data.length,
+                                                                   teacher_forcing, rng),
+                              loss.rig)
+            _, terms = loss(outputs, batch.next_rotations, batch.next_root,
+                            batch.next_positions)
+            for k, v in terms.items():
+                sums[k] = sums.get(k, 0.0) + v * len(idx)
+    return {k: v / max(len(data), 1) for k, v in sums.items()}
+
+
+def _rng_state(rng: np.random.Generator) -> dict[str, Any]:
+    return {"numpy": rng.bit_generator.state, "torch": torch.get_rng_state()}
+
+
+def _set_rng_state(rng: np.random.Generator, state: dict[str, Any]) -> None:
+    rng.bit_generator.state = state["numpy"]
+    torch.set_rng_state(state["torch"])
+
+
+def _write_csv(path: Path, history: list[dict[str, float]]) -> None:
+    from emotive.io.atomic import atomic_output
+
+    text = io.StringIO()
+    writer = csv.DictWriter(text, fieldnames=CSV_COLUMNS, lineterminator="\n")
+    writer.writeheader()
+    for row in history:
+        writer.writerow({k: "" if row.get(k) is None else row[k] for k in CSV_COLUMNS})
+    with atomic_output(path) as tmp:
+        tmp.write_text(text.getvalue())
+
+
+def _save(path: Path, checkpoint: dict[str, Any]) -> None:
+    from emotive.io.atomic import atomic_output
+
+    with atomic_output(path) as tmp:
+        torch.save(checkpoint, tmp)
+
+
+def load_checkpoint(path: str | Path) -> tuple[GaitNetwork, dict[str, Any]]:
+    """The network of a checkpoint written by :func:`train_gait`, and the checkpoint.
+
+    Raises:
+        ConfigError: the file is missing or not a gait checkpoint.
+    """
+    path = Path(path)
+    try:
+        ckpt = torch.load(path, map_location="cpu", weights_only=True)
+        network = GaitNetwork(GaitConfig.from_dict(ckpt["config"]))
+        network.load_state_dict(ckpt["state"])
+    except FileNotFoundError:
+        raise ConfigError(f"{path}: checkpoint not found") from None
+    except (KeyError, ValueError, RuntimeError, TypeError) as exc:
+        raise ConfigError(f"{path}: not a gait checkpoint ({exc})") from None
+    network.eval()
+    return network, ckpt
+
+
+def train_gait(
+    config: GaitConfig,
+    settings: GaitTrainSettings,
+    progress: bool = True,
+    out_dir: str | Path = Path("models/gait"),
+    resume: bool = False,
+    seed: int = 0,
+    *,
+    data: dict[str, GaitData] | None = None,
+    on_batch: Callable[[int, int], None] | None = None,
+) -> GaitTrainResult:
+    """Train the gait network; write ``last.pt``, ``best.pt`` and ``log.csv`` to ``out_dir``.
+
+    Args:
+        config: the network's config (its labels define the emotion vector).
+        settings: the training settings.
+        progress: rich progress bars with each loss term on stderr.
+        out_dir: output folder (created).
+        resume: continue from ``out_dir / "last.pt"`` up to ``settings.epochs`` epochs.
+        seed: seed of initialization, batch order and teacher forcing.
+        data: the splits, when already loaded (:func:`load_gait_data`); ``"train"`` needed.
+        on_batch: called as ``on_batch(epoch, batch)`` after every optimizer step (tests).
+
+    Returns:
+        The :class:`GaitTrainResult`.
+
+    Raises:
+        ConfigError: ``resume`` without a last checkpoint, or one made with another model
+            config or other training settings (``epochs`` may differ).
+        KeyboardInterrupt: after writing ``last.pt`` (Ctrl-C).
+    """
+    from rich.console import Console
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    last_path, best_path, csv_path = out_dir / "last.pt", out_dir / "best.pt", out_dir / "log.csv"
+    if resume and not last_path.exists():
+        raise ConfigError(f"{last_path}: no checkpoint to resume from")
+    if data is None:
+        data = load_gait_data(config, settings.datasets, settings.window, settings.stride,
+                              settings.split_seed, settings.max_clips, progress)
+    train, val = data["train"], data.get("val")
+    torch.manual_seed(seed)
+    rng = np.random.default_rng(seed)
+    network = GaitNetwork(config)
+    network.set_feature_statistics(**{k: tuple(torch.from_numpy(x) for x in v)
+                                      for k, v in train.statistics().items()})
+    rig = GaitRig.from_skeleton(train.skeleton)
+    loss_fn = GaitLoss(config, rig)
+    optimizer = torch.optim.Adam(network.parameters(), lr=settings.learning_rate)
+    history: list[dict[str, float]] = []
+    best_val = math.inf
+    start_epoch = 0
+    if resume:
+        _, ckpt = load_checkpoint(last_path)
+        if ckpt["config"] != config.to_dict():
+            raise ConfigError(f"{last_path}: made with another [model] config; cannot resume")
+        saved = {k: v for k, v in ckpt["train"].items() if k != "epochs"}
+        if saved != {k: v for k, v in settings.to_dict().items() if k != "epochs"}:
+            raise ConfigError(f"{last_path}: made with other [train] settings; cannot resume")
+        network.load_state_dict(ckpt["state"])
+        optimizer.load_state_dict(ckpt["optimizer"])
+        _set_rng_state(rng, ckpt["rng"])
+        start_epoch, best_val = int(ckpt["epoch"]), float(ckpt["best_val"])
+        history = list(ckpt["history"])[:start_epoch]
+
+    def checkpoint(epoch: int, rng_state: dict[str, Any]) -> dict[str, Any]:
+        return {
+            "config": config.to_dict(), "train": settings.to_dict(),
+            "state": network.state_dict(), "optimizer": optimizer.state_dict(),
+            "epoch": epoch, "rng": rng_state, "best_val": best_val, "history": history,
+            "seed": seed,
+        }
+
+    console = Console(stderr=True)
+    bars = Progress(
+        TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+        TimeElapsedColumn(), TextColumn("{task.fields[losses]}"),
+        console=console, disable=not progress, transient=True,
+    )
+    n_batches = math.ceil(len(train) / settings.batch_size)
+    epoch = start_epoch
+    epoch_rng = _rng_state(rng)
+    # Whether the weights moved since last.pt was written (Ctrl-C then has something to save).
+    dirty = False
+    try:
+        with bars:
+            epochs_task = bars.add_task("epochs", total=settings.epochs,
+                                        completed=start_epoch, losses="")
+            batch_task = bars.add_task("batches", total=n_batches, losses="")
+            for epoch in range(start_epoch, settings.epochs):
+                epoch_rng = _rng_state(rng)
+                began = time.perf_counter()
+                lr = settings.learning_rate * settings.lr_decay**epoch
+                ratio = settings.teacher_forcing_decay**epoch
+                for group in optimizer.param_groups:
+                    group["lr"] = lr
+                network.train()
+                sums: dict[str, float] = {}
+                seen = 0
+                bars.reset(batch_task, total=n_batches)
+                for k, idx in enumerate(_batches(len(train), settings.batch_size,
+                                                 rng.permutation(len(train)))):
+                    batch = train.batch(idx)
+                    outputs = rollout(network, batch,
+                                      teacher_forcing_mask(train.length, ratio, rng), rig)
+                    total, terms = loss_fn(outputs, batch.next_rotations, batch.next_root,
+                                           batch.next_positions)
+                    optimizer.zero_grad()
+                    total.backward()
+                    optimizer.step()
+                    dirty = True
+                    seen += len(idx)
+                    for name, value in terms.items():
+                        sums[name] = sums.get(name, 0.0) + value * len(idx)
+                    bars.update(batch_task, advance=1, losses=_describe(
+                        {n: v / seen for n, v in sums.items()}))
+                    if on_batch is not None:
+                        on_batch(epoch, k)
+                train_terms = {n: v / seen for n, v in sums.items()}
+                val_terms = (
+                    # Without gradients, larger batches cost no more memory than training ones.
+                    evaluate_loss(network, val, loss_fn, 4 * settings.batch_size,
+                                  settings.val_teacher_forcing, seed)
+                    if val is not None and len(val) else {}
+                )
+                row: dict[str, float] = {"epoch": epoch + 1}
+                for name in LOG_TERMS:
+                    row[f"train_{name}"] = train_terms.get(name)
+                    row[f"val_{name}"] = val_terms.get(name)
+                row.update(lr=lr, teacher_forcing=ratio,
+                           seconds=round(time.perf_counter() - began, 3))
+                history.append(row)
+                score = val_terms.get("total", train_terms["total"])
+                improved = score < best_val
+                if improved:
+                    best_val = score
+                done = checkpoint(epoch + 1, _rng_state(rng))
+                if improved:
+                    _save(best_path, done)
+                _save(last_path, done)
+                dirty = False
+                _write_csv(csv_path, history)
+                summary = (
+                    f"train {train_terms['total']:.4g}"
+                    + (f"  val {val_terms['total']:.4g}" if val_terms else "")
+                    + ("  (best)" if improved else "")
+                )
+                bars.update(epochs_task, advance=1, losses=summary)
+                if progress:
+                    bars.console.print(f"epoch {epoch + 1}/{settings.epochs}: {summary}  "
+                                       f"{_describe(val_terms or train_terms)}  "
+                                       f"lr {lr:.3g}  teacher forcing {ratio:.3g}")
+    except KeyboardInterrupt:
+        if dirty:
+            # The weights reached are kept; the epoch reruns from its start, same batch order.
+            del history[epoch:]
+            _save(last_path, checkpoint(epoch, epoch_rng))
+            _write_csv(csv_path, history)
+        console.print(f"interrupted: wrote {last_path}; continue with --resume")
+        raise
+    network.eval()
+    return GaitTrainResult(network, history, out_dir,
+                           best_val if math.isfinite(best_val) else math.nan)
+
+
+def _describe(terms: dict[str, float]) -> str:
+    """``"total 1.23 motion 0.5 ..."`` for the progress bar."""
+    order = ("total", *LOSS_TERMS)
+    return "  ".join(f"{n} {terms[n]:.3g}" for n in order if n in terms)
