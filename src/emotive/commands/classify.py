@@ -11,8 +11,11 @@ from typing import Annotated
 
 import typer
 
+from emotive.commands.train_gait import train_gait_command
+
 train_app = typer.Typer(help="Train models on the real data sets.", no_args_is_help=True,
                         add_completion=False)
+train_app.command("gait")(train_gait_command)
 
 ModelOpt = Annotated[
     Path | None,
@@ -76,6 +79,16 @@ def train_classifier_command(
     folds: Annotated[
         int, typer.Option(help="Also cross-validate over this many folds (0: skip).", min=0)
     ] = 5,
+    architecture: Annotated[
+        str | None,
+        typer.Option(help='Network: "tcn" or "stgcn" (default: the project\'s choice).',
+                     show_default=False),
+    ] = None,
+    compare_seeds: Annotated[
+        int,
+        typer.Option(help="Cross-validate every architecture on the same folds with this many "
+                          "seeds for the card's comparison (0: only the trained one).", min=0),
+    ] = 3,
 ) -> None:
     """Train the perceived-emotion classifier on real data, measure it, write it and its card."""
     from dataclasses import replace
@@ -84,6 +97,7 @@ def train_classifier_command(
 
     from emotive.eval.classifier import ClassifierConfig
     from emotive.eval.classifier_training import (
+        compare_architectures,
         cross_validate,
         load_split_features,
         train_classifier,
@@ -93,9 +107,17 @@ def train_classifier_command(
     console = Console(stderr=True)
     out.mkdir(parents=True, exist_ok=True)
     config = replace(ClassifierConfig(), seed=seed, epochs=epochs)
+    if architecture is not None:
+        config = replace(config, architecture=architecture)
     data = load_split_features(config, progress=True)
     model = train_classifier(config, progress=True, data=data)
-    if folds:
+    if folds and compare_seeds:
+        console.print(f"cross-validating every architecture over {folds} folds and "
+                      f"{compare_seeds} seeds ...")
+        results = compare_architectures(config, folds, compare_seeds, data=data)
+        model.metrics["architectures"] = results
+        model.metrics["cross_validation"] = results[config.architecture]["runs"][0]
+    elif folds:
         console.print(f"cross-validating over {folds} folds ...")
         model.metrics["cross_validation"] = cross_validate(config, folds, data=data)
     path = model.save(out / "emotion-classifier.pt")

@@ -18,18 +18,31 @@ the 21 joint roles (:data:`emotive.core.roles.ROLES`), so any rig with a role ma
 Everything is resampled to :attr:`ClassifierConfig.fps` and standardized with the training
 set's mean and standard deviation, saved with the weights.
 
-Network: a 1D convolution of width 5 to ``channels``, then ``blocks`` residual dilated
-convolutions (dilation 2, 4, ...), ELU, mean over time, a linear layer to the labels. Any
-window at least :attr:`ClassifierConfig.min_seconds` long can be classified.
+Two networks, picked by :attr:`ClassifierConfig.architecture` (see :data:`ARCHITECTURES`);
+both read ``(B, T, F)`` standardized features and give ``(B, C)`` logits:
 
-Legend: ``T`` frames, ``F`` features, ``B`` windows, ``C`` labels.
+* ``"tcn"`` (:class:`EmotionClassifierNet`): a 1D convolution of width 5 to ``channels``, then
+  ``blocks`` residual dilated convolutions (dilation 2, 4, ...), ELU, mean over time, a linear
+  layer to the labels.
+* ``"stgcn"`` (:class:`EmotionGraphNet`): a spatial-temporal graph convolution network in the
+  spirit of STEP (Bhattacharya et al. 2020) and ST-GCN (Yan et al. 2018). Each of the 21
+  roles is a graph node carrying its body-frame position and velocity (6 channels); the graph
+  is the role skeleton (:data:`ROLE_EDGES`, :func:`role_adjacency`). ``graph_blocks`` blocks
+  each mix channels per joint, average over graph neighbours, convolve along time and add a
+  residual; the result is averaged over time and joints. The affective and movement features
+  pass through a small temporal branch, are averaged over time and joined to the graph
+  summary before the linear layer, as STEP joins its affective features.
+
+Any window at least :attr:`ClassifierConfig.min_seconds` long can be classified.
+
+Legend: ``T`` frames, ``J`` joint roles, ``F`` features, ``B`` windows, ``C`` labels.
 """
 
 from __future__ import annotations
 
 import json
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -49,9 +62,23 @@ from emotive.io.atomic import atomic_output
 #: Number of per-frame feature columns.
 NUM_FEATURES = 2 * 3 * len(ROLES) + 18 + 8
 
+#: Feature columns holding the joint roles' positions then velocities (``2 * J * 3``).
+JOINT_COLUMNS = 2 * 3 * len(ROLES)
+
+#: The role skeleton as undirected edges: spine chain, arms from the chest, legs from the root.
+ROLE_EDGES: tuple[tuple[str, str], ...] = (
+    ("root", "spine"), ("spine", "chest"), ("chest", "neck"), ("neck", "head"),
+    ("chest", "l_shoulder"), ("l_shoulder", "l_elbow"), ("l_elbow", "l_wrist"),
+    ("l_wrist", "l_handtip"),
+    ("chest", "r_shoulder"), ("r_shoulder", "r_elbow"), ("r_elbow", "r_wrist"),
+    ("r_wrist", "r_handtip"),
+    ("root", "l_hip"), ("l_hip", "l_knee"), ("l_knee", "l_ankle"), ("l_ankle", "l_toe"),
+    ("root", "r_hip"), ("r_hip", "r_knee"), ("r_knee", "r_ankle"), ("r_ankle", "r_toe"),
+)
+
 
 class ClassifierError(EmotiveError):
-    """A classifier file that cannot be used, or motion too short to classify."""
+    """A classifier file that cannot be used, motion too short to classify, or a bad config."""
 
 
 @dataclass(frozen=True)
@@ -65,8 +92,13 @@ class ClassifierConfig:
         fps: frame rate of the features.
         min_seconds, max_seconds: training windows are drawn between these lengths.
         stride_seconds: spacing of training window starts.
-        channels: width of the convolutions.
-        blocks: residual dilated blocks.
+        architecture: the network, a key of :data:`ARCHITECTURES` (``"tcn"`` or ``"stgcn"``).
+            Files written before the field existed hold ``"tcn"`` networks.
+        channels: width of the convolutions (``"tcn"``).
+        blocks: residual dilated blocks (``"tcn"``).
+        graph_channels: per-joint width of the graph blocks (``"stgcn"``).
+        graph_blocks: spatial-temporal graph blocks (``"stgcn"``).
+        affect_channels: width of the affective and movement branch (``"stgcn"``).
         dropout: dropout before the output layer.
         epochs: training epochs.
         batch_size: windows per step.
@@ -82,8 +114,12 @@ class ClassifierConfig:
     min_seconds: float = 2.0
     max_seconds: float = 4.0
     stride_seconds: float = 0.5
+    architecture: str = "tcn"
     channels: int = 48
     blocks: int = 3
+    graph_channels: int = 24
+    graph_blocks: int = 3
+    affect_channels: int = 16
     dropout: float = 0.3
     epochs: int = 40
     batch_size: int = 64
@@ -94,6 +130,20 @@ class ClassifierConfig:
     def __post_init__(self) -> None:
         object.__setattr__(self, "labels", check_labels(self.labels))
         object.__setattr__(self, "datasets", tuple(self.datasets))
+        if self.architecture not in ARCHITECTURES:
+            raise ClassifierError(f"unknown classifier architecture {self.architecture!r}; "
+                                  f"choose one of {sorted(ARCHITECTURES)}")
+
+    @classmethod
+    def from_dict(cls, values: dict) -> ClassifierConfig:
+        """The config saved as ``asdict(config)`` (lists back to tuples).
+
+        A dict without ``architecture`` comes from a file written before there was a choice,
+        which always held the temporal CNN, whatever the default is now.
+        """
+        values = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items()}
+        values.setdefault("architecture", "tcn")
+        return cls(**values)
 
 
 def frame_features(positions: np.ndarray, roles: JointRoles, fps: float,
@@ -163,7 +213,7 @@ class _Block(nn.Module):
 
 
 class EmotionClassifierNet(nn.Module):
-    """Temporal CNN: ``(B, T, F)`` standardized features to ``(B, C)`` logits."""
+    """Temporal CNN (``"tcn"``): ``(B, T, F)`` standardized features to ``(B, C)`` logits."""
 
     def __init__(self, config: ClassifierConfig) -> None:
         super().__init__()
@@ -178,19 +228,122 @@ class EmotionClassifierNet(nn.Module):
         return self.out(self.drop(h.mean(-1)))
 
 
+def role_adjacency() -> np.ndarray:
+    """Normalized adjacency of the role skeleton with self loops.
+
+    ``D^-1/2 (A + I) D^-1/2`` with ``D`` the degrees of ``A + I`` (Kipf and Welling's
+    normalization): symmetric, so a joint hears its neighbours as they hear it, and its
+    largest eigenvalue is 1, so stacked blocks neither blow up nor fade the signal.
+
+    Returns:
+        ``(J, J)`` float32, rows and columns in :data:`ROLES` order.
+    """
+    a = np.eye(len(ROLES))
+    for u, v in ROLE_EDGES:
+        a[ROLES.index(u), ROLES.index(v)] = a[ROLES.index(v), ROLES.index(u)] = 1.0
+    scale = 1.0 / np.sqrt(a.sum(1))
+    return (scale[:, None] * a * scale[None, :]).astype(np.float32)
+
+
+#: Frames seen by each temporal convolution of the graph blocks (ST-GCN's 9).
+_TEMPORAL_KERNEL = 9
+
+
+class _GraphBlock(nn.Module):
+    """ST-GCN block, ``(B, T, J, c_in)`` to ``(B, ceil(T / stride), J, c_out)`` (c: channels).
+
+    Channels stay last: the per-joint channel mixing is then a linear layer, and the temporal
+    convolution sees a channels-last ``(B, c, T, J)`` view, the layout that the CPU kernels
+    run several times faster than the default one.
+    """
+
+    def __init__(self, c_in: int, c_out: int, stride: int) -> None:
+        super().__init__()
+        self.stride = stride
+        self.spatial = nn.Linear(c_in, c_out)
+        self.temporal = nn.Conv2d(c_out, c_out, (_TEMPORAL_KERNEL, 1), stride=(stride, 1),
+                                  padding=(_TEMPORAL_KERNEL // 2, 0))
+        self.residual = nn.Identity() if c_in == c_out else nn.Linear(c_in, c_out)
+        self.act = nn.ELU()
+        # Fixed by ROLE_EDGES, so it is rebuilt on load rather than stored in the file.
+        self.register_buffer("adjacency", torch.from_numpy(role_adjacency()), persistent=False)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        # A is symmetric, so A @ h over the J axis gathers each joint's neighbours untransposed.
+        h = self.act(self.adjacency @ self.spatial(x))
+        h = self.temporal(h.permute(0, 3, 1, 2)).permute(0, 2, 3, 1)
+        # Padding k // 2 on each side leaves ceil(T / stride) frames, as many as x[:, ::stride].
+        return self.act(h + self.residual(x[:, ::self.stride]))
+
+
+def joint_nodes(x: torch.Tensor) -> torch.Tensor:
+    """Per-joint node signals of feature windows.
+
+    Args:
+        x: ``(B, T, F)`` features (the first :data:`JOINT_COLUMNS` are positions then
+            velocities, each ``(J, 3)`` flattened).
+
+    Returns:
+        ``(B, T, J, 6)``: each role's position (x, y, z) then velocity (x, y, z).
+    """
+    b, t, _ = x.shape
+    nodes = x[..., :JOINT_COLUMNS].reshape(b, t, 2, len(ROLES), 3)
+    return nodes.permute(0, 1, 3, 2, 4).reshape(b, t, len(ROLES), 6)
+
+
+class EmotionGraphNet(nn.Module):
+    """Spatial-temporal graph network (``"stgcn"``): ``(B, T, F)`` to ``(B, C)`` logits.
+
+    The joint columns become ``(B, T, J, 6)`` node signals (:func:`joint_nodes`);
+    blocks after the first halve the frame rate, as ST-GCN's later layers do, which keeps CPU
+    training short and widens what each temporal convolution sees.
+    """
+
+    def __init__(self, config: ClassifierConfig) -> None:
+        super().__init__()
+        c = config.graph_channels
+        self.blocks = nn.Sequential(*(
+            _GraphBlock(6 if k == 0 else c, c, 1 if k == 0 else 2)
+            for k in range(config.graph_blocks)
+        ))
+        a = config.affect_channels
+        self.affect = nn.Sequential(
+            nn.Conv1d(NUM_FEATURES - JOINT_COLUMNS, a, 5, padding=2), nn.ELU(), _Block(a, 2)
+        )
+        self.drop = nn.Dropout(config.dropout)
+        self.out = nn.Linear(c + a, len(config.labels))
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        graph = self.blocks(joint_nodes(x)).mean((1, 2))
+        affect = self.affect(x[..., JOINT_COLUMNS:].transpose(1, 2)).mean(-1)
+        return self.out(self.drop(torch.cat((graph, affect), 1)))
+
+
+#: Network constructors by :attr:`ClassifierConfig.architecture`.
+ARCHITECTURES: dict[str, Callable[[ClassifierConfig], nn.Module]] = {
+    "tcn": EmotionClassifierNet,
+    "stgcn": EmotionGraphNet,
+}
+
+
+def build_net(config: ClassifierConfig) -> nn.Module:
+    """The untrained network of ``config.architecture``."""
+    return ARCHITECTURES[config.architecture](config)
+
+
 @dataclass
 class EmotionClassifier:
     """A trained classifier: network, standardization and config.
 
     Attributes:
         config: how it was built and trained.
-        net: the network (eval mode).
+        net: the network of ``config.architecture`` (eval mode).
         mean, std: ``(F,)`` standardization of the features.
         metrics: held-out results recorded at training time (accuracy, confusion matrix, ...).
     """
 
     config: ClassifierConfig
-    net: EmotionClassifierNet
+    net: nn.Module
     mean: np.ndarray
     std: np.ndarray
     metrics: dict = field(default_factory=dict)
@@ -270,10 +423,8 @@ class EmotionClassifier:
             payload = torch.load(path, map_location="cpu", weights_only=True)
             if payload.get("format") != "emotive-emotion-classifier/1":
                 raise KeyError("format")
-            config = ClassifierConfig(**{
-                k: tuple(v) if isinstance(v, list) else v for k, v in payload["config"].items()
-            })
-            net = EmotionClassifierNet(config)
+            config = ClassifierConfig.from_dict(payload["config"])
+            net = build_net(config)
             net.load_state_dict(payload["state"])
         except FileNotFoundError:
             raise ClassifierError(f"classifier file {path} does not exist") from None

@@ -9,7 +9,9 @@ much as common ones. The kept weights are those of the epoch with the best valid
 balanced accuracy (ties: lower validation loss, then the later epoch).
 
 The held-out test split of the Bandai data holds only a few clips per emotion, so
-:func:`cross_validate` also measures the same recipe by k-fold cross-validation over clips.
+:func:`cross_validate` also measures the same recipe by k-fold cross-validation over clips, and
+:func:`compare_architectures` runs it for every network of
+:data:`~emotive.eval.classifier.ARCHITECTURES` on the same folds with the same seed.
 
 Measurement: every held-out clip is cut into 4-second windows with a 1-second hop (a clip
 shorter than 4 s is one window); window accuracy, clip accuracy (the mean probability over the
@@ -21,7 +23,8 @@ Legend: ``T`` frames, ``F`` features, ``B`` windows, ``C`` labels.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+import time
+from dataclasses import dataclass, replace
 
 import numpy as np
 import torch
@@ -30,9 +33,10 @@ from torch import nn
 from emotive.data.clips import load_clips
 from emotive.data.splits import SPLITS, split_clips
 from emotive.eval.classifier import (
+    ARCHITECTURES,
     ClassifierConfig,
     EmotionClassifier,
-    EmotionClassifierNet,
+    build_net,
     motion_features,
 )
 
@@ -154,7 +158,7 @@ def train_classifier(config: ClassifierConfig | None = None, progress: bool = Fa
     frames = np.concatenate([item.features for item in data["train"]])
     mean = frames.mean(0)
     std = np.maximum(frames.std(0), 1e-3).astype(np.float32)
-    net = EmotionClassifierNet(config)
+    net = build_net(config)
     model = EmotionClassifier(config, net, mean.astype(np.float32), std)
 
     stride = max(1, round(config.stride_seconds * config.fps))
@@ -222,18 +226,22 @@ def cross_validate(config: ClassifierConfig, folds: int = 5, progress: bool = Fa
     epochs (no model selection) and is measured on its own fold.
 
     Returns:
-        ``{"folds", "window_accuracy", "clip_accuracy", "balanced_accuracy" (pooled over the
-        folds' windows), "fold_window_accuracy": [...], "confusion", "per_label", "labels"}``.
+        ``{"architecture", "folds", "window_accuracy", "clip_accuracy", "balanced_accuracy"
+        (pooled over the folds' windows), "fold_window_accuracy": [...], "confusion",
+        "per_label", "labels", "train_seconds" (mean wall-clock seconds to train one fold's
+        model)}``.
     """
     data = data if data is not None else load_split_features(config, progress)
     items = sorted((i for split in SPLITS for i in data[split]), key=lambda i: (i.label, i.name))
     n = len(config.labels)
     confusion = np.zeros((n, n), dtype=np.int64)
-    fold_acc, clip_hits = [], 0
+    fold_acc, clip_hits, seconds = [], 0, []
     for f in range(folds):
         held = [item for k, item in enumerate(items) if k % folds == f]
         rest = [item for k, item in enumerate(items) if k % folds != f]
+        start = time.perf_counter()
         model = train_classifier(config, data={"train": rest, "val": [], "test": []})
+        seconds.append(time.perf_counter() - start)
         result = measure(model, held)
         confusion += np.array(result["confusion"], dtype=np.int64)
         fold_acc.append(result["window_accuracy"])
@@ -241,6 +249,7 @@ def cross_validate(config: ClassifierConfig, folds: int = 5, progress: bool = Fa
     per_label = {config.labels[k]: float(confusion[k, k] / confusion[k].sum())
                  for k in range(n) if confusion[k].sum()}
     return {
+        "architecture": config.architecture,
         "labels": list(config.labels),
         "folds": folds,
         "clips": len(items),
@@ -251,4 +260,43 @@ def cross_validate(config: ClassifierConfig, folds: int = 5, progress: bool = Fa
         "fold_window_accuracy": fold_acc,
         "per_label": per_label,
         "confusion": confusion.tolist(),
+        "train_seconds": float(np.mean(seconds)),
     }
+
+
+def compare_architectures(config: ClassifierConfig, folds: int = 5, seeds: int = 1,
+                          progress: bool = False,
+                          data: dict[str, list[LabelledFeatures]] | None = None) -> dict[str, dict]:
+    """:func:`cross_validate` of ``config`` with each architecture, on the same folds and seeds.
+
+    Only ``architecture`` and ``seed`` change between the runs (same data and recipe), so the
+    differences are the networks' own; several seeds average out the luck of one
+    initialization, which moves the CV numbers of this small data set by several points.
+
+    Args:
+        config: the recipe; its seed is the first of the seeds.
+        folds: cross-validation folds.
+        seeds: how many seeds, ``config.seed``, ``config.seed + 1``, ...
+        progress: progress bars on stderr while the data loads.
+        data: features by split, when already loaded (:func:`load_split_features`).
+
+    Returns:
+        ``{architecture: {"seeds", "runs" (one :func:`cross_validate` result per seed),
+        "folds", "window_accuracy", "balanced_accuracy", "clip_accuracy", "train_seconds"
+        (means over the seeds), "per_label" (means over the seeds)}}`` for every key of
+        ``ARCHITECTURES``.
+    """
+    data = data if data is not None else load_split_features(config, progress)
+    out = {}
+    for name in ARCHITECTURES:
+        ids = [config.seed + k for k in range(seeds)]
+        runs = [cross_validate(replace(config, architecture=name, seed=s), folds, data=data)
+                for s in ids]
+        mean = {key: float(np.mean([r[key] for r in runs])) for key in (
+            "window_accuracy", "balanced_accuracy", "clip_accuracy", "train_seconds")}
+        out[name] = {
+            "seeds": ids, "runs": runs, "folds": folds, **mean,
+            "per_label": {label: float(np.mean([r["per_label"][label] for r in runs]))
+                          for label in runs[0]["per_label"]},
+        }
+    return out

@@ -7,6 +7,13 @@ from dataclasses import asdict
 from emotive.data.registry import get_dataset
 from emotive.eval.classifier import EmotionClassifier
 
+#: How the card's first sentence names each architecture.
+_NETWORKS = {
+    "tcn": "A temporal convolution network",
+    "stgcn": "A spatial-temporal graph convolution network over the joint-role skeleton "
+             "(in the spirit of STEP and ST-GCN)",
+}
+
 
 def _table(result: dict) -> list[str]:
     labels = result["labels"]
@@ -24,11 +31,49 @@ def _table(result: dict) -> list[str]:
     return lines
 
 
+def _comparison(results: dict[str, dict], chosen: str) -> list[str]:
+    """Table of :func:`~emotive.eval.classifier_training.compare_architectures` results."""
+    first = next(iter(results.values()))
+    seeds = ", ".join(str(s) for s in first["seeds"])
+    lines = [
+        f"### Architectures compared ({first['folds']}-fold cross-validation, same folds, "
+        f"seeds {seeds})",
+        "",
+        "| architecture | CV window accuracy | CV balanced accuracy | per label | "
+        "seconds to train |",
+        "|---|---:|---:|---|---:|",
+    ]
+
+    def cell(result: dict, key: str) -> str:
+        each = ", ".join(f"{r[key]:.3f}" for r in result["runs"])
+        return f"{result[key]:.3f} ({each})" if len(result["runs"]) > 1 else f"{result[key]:.3f}"
+
+    for name, result in results.items():
+        mark = " (this model)" if name == chosen else ""
+        per_label = ", ".join(f"{k} {v:.2f}" for k, v in result["per_label"].items())
+        lines.append(
+            f"| {name}{mark} | {cell(result, 'window_accuracy')} | "
+            f"{cell(result, 'balanced_accuracy')} | {per_label} | "
+            f"{result['train_seconds']:.1f} |"
+        )
+    return [
+        *lines, "",
+        "Accuracies: the mean over the seeds, then each seed's (the first seed's run of this "
+        "model's architecture is the cross-validation above); per label: means over the seeds. "
+        "Seconds to train: mean wall-clock time of one fold's model on the CPU that wrote this "
+        "card. The default architecture (`ClassifierConfig.architecture`) is the one with the "
+        "higher mean CV window accuracy here when the choice was made.",
+        "",
+    ]
+
+
 def classifier_card(model: EmotionClassifier, clips: dict[str, list[str]]) -> str:
     """Markdown model card of a trained perceived-emotion classifier.
 
     Args:
-        model: the classifier with its ``metrics``.
+        model: the classifier with its ``metrics`` (``test``, ``val``, optionally
+            ``cross_validation`` and ``architectures``, the latter from
+            :func:`~emotive.eval.classifier_training.compare_architectures`).
         clips: clip names by split, as trained.
     """
     cfg = model.config
@@ -36,9 +81,9 @@ def classifier_card(model: EmotionClassifier, clips: dict[str, list[str]]) -> st
     out = [
         "# Perceived-emotion classifier",
         "",
-        "A temporal convolution network that reads 2-10 s of motion (joint positions of the 21 "
-        "joint roles in the body frame, their velocities, the 18 affective features and 8 "
-        "movement features, at "
+        f"{_NETWORKS.get(cfg.architecture, cfg.architecture)} that reads 2-10 s of motion "
+        "(joint positions of the 21 joint roles in the body frame, their velocities, the 18 "
+        "affective features and 8 movement features, at "
         f"{cfg.fps:g} fps) and gives probabilities over {', '.join(cfg.labels)}. It stands in "
         "for human observers when the project's generators are evaluated; it was trained on "
         "real motion only. Code: `emotive.eval.classifier`; retrain with "
@@ -71,6 +116,8 @@ def classifier_card(model: EmotionClassifier, clips: dict[str, list[str]]) -> st
             result = model.metrics[key]
             extra = f", {result['folds']} folds" if key == "cross_validation" else ""
             out += [f"### {title}{extra}", "", *_table(result), ""]
+    if "architectures" in model.metrics:
+        out += _comparison(model.metrics["architectures"], cfg.architecture)
     out += [
         "## Limits",
         "",
