@@ -7,7 +7,7 @@ end-effector and elbow trajectories in chain frames, and helpers built on them:
 feet still (foot-plant cleanup for the generators).
 """
 
-from emotive.ik.api import IKResult, pin_feet, reconstruct, solve_chains
+from emotive.ik.api import IKResult, pin_feet, rebuild, reconstruct, solve_chains
 from emotive.ik.chains import (
     CHAIN_NAMES,
     CHAIN_SPECS,
@@ -48,6 +48,7 @@ __all__ = [
     "integrate_pelvis",
     "pelvis_trajectory",
     "pin_feet",
+    "rebuild",
     "reconstruct",
     "resolve_chains",
     "solve_chain",

@@ -165,16 +165,33 @@ def reconstruct(
     with single_thread():
         chains = chains if chains is not None else resolve_chains(motion.skeleton, motion, role_map)
         traj = extract_trajectories(motion, chains, role_map)
-        return _rebuild(motion, chains, traj, role_map, solver)
+        return rebuild(motion, traj, chains, role_map=role_map, **solver)
 
 
-def _rebuild(
+def rebuild(
     motion: Motion,
-    chains: dict[str, Chain],
     traj: Trajectories,
-    role_map: RoleMap,
-    solver: dict[str, Any],
+    chains: dict[str, Chain],
+    *,
+    role_map: RoleMap = None,
+    **solver: Any,
 ) -> IKResult:
+    """Whole-body motion following chain-frame trajectories, on ``motion``'s rig.
+
+    The pelvis is integrated from its invariant path, the chain joints start from their
+    neutral pose and the chains are solved from the targets alone; every other joint keeps
+    ``motion``'s rotations (which must have as many frames as ``traj``).
+
+    Args:
+        motion: the clip that gives the rig and the joints outside the chains, ``T`` frames.
+        traj: pelvis path and chain targets, ``T`` frames (:func:`extract_trajectories`).
+        chains: from :func:`resolve_chains`.
+        role_map: as for :func:`emotive.core.roles.resolve_roles`.
+        **solver: keyword arguments of :func:`emotive.ik.solver.solve_chain`.
+
+    Returns:
+        The rebuilt clip and per-chain reports.
+    """
     sk = motion.skeleton
     root = resolve_roles(sk, role_map).index["root"]
     pos_w, rot_w = integrate_pelvis(traj.pelvis)
@@ -190,7 +207,8 @@ def _rebuild(
     for chain in chains.values():
         rot[:, chain.joints] = chain.neutral
     start = motion.replace(rotations=rot, positions=pos)
-    return solve_chains(start, traj.targets, chains, frame="chain", init="neutral", **solver)
+    return solve_chains(start, traj.targets, chains, frame="chain", init="neutral",
+                        role_map=role_map, **solver)
 
 
 def _contact_runs(column: np.ndarray) -> list[tuple[int, int]]:

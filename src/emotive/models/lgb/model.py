@@ -326,35 +326,13 @@ class EmotionResampler:
         Returns:
             The IK result; its motion is at the data's frame rate.
         """
-        from emotive.core.roles import resolve_roles
-        from emotive.ik import integrate_pelvis, solve_chains
-        from emotive.transforms.np_rotations import (
-            quaternion_apply,
-            quaternion_invert,
-            quaternion_multiply,
-        )
+        from emotive.ik import rebuild
 
         n = len(traj.pelvis.height)
         ref = self.reference
-        sk = ref.skeleton
-        rot = np.repeat(ref.rotations[:1], n, axis=0)
-        pos = np.repeat(ref.positions[:1], n, axis=0)
-        base = Motion(sk, rot, pos, self.fps, dict(ref.metadata))
-        root = resolve_roles(sk, role_map).index["root"]
-        pos_w, rot_w = integrate_pelvis(traj.pelvis)
-        parent = sk.parents[root]
-        if parent >= 0:
-            # The root role may sit under a static file root (Bandai's joint_Root).
-            grot, gpos = base.global_transforms()
-            inv = quaternion_invert(grot[:, parent])
-            rot_w = quaternion_multiply(inv, rot_w)
-            pos_w = quaternion_apply(inv, pos_w - gpos[:, parent])
-        rot[:, root], pos[:, root] = rot_w, pos_w
-        for chain in self.chains.values():
-            rot[:, chain.joints] = chain.neutral
-        start = base.replace(rotations=rot, positions=pos)
-        return solve_chains(start, traj.targets, self.chains, frame="chain", init="neutral",
-                            role_map=role_map, **solver)
+        base = Motion(ref.skeleton, np.repeat(ref.rotations[:1], n, axis=0),
+                      np.repeat(ref.positions[:1], n, axis=0), self.fps, dict(ref.metadata))
+        return rebuild(base, traj, self.chains, role_map=role_map, **solver)
 
     def generate(
         self,
