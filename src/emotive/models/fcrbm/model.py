@@ -1,0 +1,439 @@
+"""Factored Conditional Restricted Boltzmann Machine (Taylor and Hinton 2009).
+
+The model of Alemi, Li and Pasquier (2015), "Affect-expressive movement generation with
+factored conditional restricted Boltzmann machines": Gaussian visible units ``v_t`` (one frame
+of standardized motion, unit variance), binary hidden units ``h_t``, the past ``N`` frames
+``v_<t`` and a real-valued context ``z_t`` (valence and arousal, paper values 1..3; never 0,
+because every interaction is multiplicative in ``z``). Three factored three-way interactions,
+each gated by the context:
+
+* visible-hidden-context (``w_vis``, ``w_hid``, ``w_ctx``), the undirected term of the energy;
+* past-to-visible (``a_past``, ``a_vis``, ``a_ctx``), the dynamic visible bias ``â``;
+* past-to-hidden (``b_past``, ``b_hid``, ``b_ctx``), the dynamic hidden bias ``b̂``.
+
+Energy (paper equation 1)::
+
+    E(v, h | v_<t, z) = ½ Σ_i (v_i − â_i)² − Σ_f (v·Wv)_f (h·Wh)_f (z·Wz)_f − Σ_j b̂_j h_j
+    â = a + ((p·Ap) ⊙ (z·Az))·Avᵀ        b̂ = b + ((p·Bp) ⊙ (z·Bz))·Bhᵀ
+
+with ``p`` the flattened past. Training is contrastive divergence (CD-k): the gradient is that
+of the free-energy difference ``F(v_data) − F(v_k)`` with the negative sample held fixed, taken
+by autograd (it is the exact CD estimator: the free energy marginalises the hidden units), then
+applied by hand as momentum SGD with L2 weight decay on the weights (not on the biases), as in
+Taylor's code. Generation runs alternating Gibbs sampling per frame: sampled binary hidden
+units, mean-field (noise-free) visible units, and hidden probabilities in the last step.
+
+Legend: ``B`` batch, ``T`` frames, ``N`` order (past frames), ``D`` visible units, ``H`` hidden
+units, ``F`` factors, ``C`` context size. A past window ``(B, N, D)`` is in time order: index
+``-1`` is the frame just before the current one.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, fields
+from typing import Any
+
+import torch
+from torch import Tensor, nn
+
+__all__ = ["FCRBM", "FCRBMConfig", "sliding_windows"]
+
+
+@dataclass(frozen=True)
+class FCRBMConfig:
+    """Sizes and training settings of an :class:`FCRBM` (defaults: the paper's model).
+
+    Attributes:
+        visible: ``D``, values per frame (paper 52).
+        context: ``C``, context size (2: valence and arousal).
+        order: ``N``, past frames the model is conditioned on (paper 6).
+        hidden: ``H``, binary hidden units (paper 400).
+        factors: factors of the visible-hidden-context interaction (paper 300).
+        factors_past_visible: factors of the past-to-visible interaction (paper 300).
+        factors_past_hidden: factors of the past-to-hidden interaction (paper 300).
+        learning_rate: step size of the CD updates.
+        momentum: momentum of the CD updates.
+        weight_decay: L2 penalty on the weights (biases are not decayed).
+        cd_steps: ``k`` of CD-k.
+        gibbs: alternating Gibbs iterations per generated frame.
+        init_std: standard deviation of the initial weights.
+        seed: seed of the initial weights and of the default sampling generator.
+    """
+
+    visible: int
+    context: int = 2
+    order: int = 6
+    hidden: int = 400
+    factors: int = 300
+    factors_past_visible: int = 300
+    factors_past_hidden: int = 300
+    learning_rate: float = 1e-3
+    momentum: float = 0.9
+    weight_decay: float = 2e-4
+    cd_steps: int = 1
+    gibbs: int = 30
+    init_std: float = 0.01
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        sizes = (
+            "visible", "context", "order", "hidden", "factors",
+            "factors_past_visible", "factors_past_hidden", "cd_steps", "gibbs",
+        )  # fmt: skip
+        for name in sizes:
+            value = getattr(self, name)
+            if not isinstance(value, int) or isinstance(value, bool) or value < 1:
+                raise ValueError(f"FCRBMConfig.{name} must be a positive integer, got {value!r}")
+        for name in ("learning_rate", "init_std"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"FCRBMConfig.{name} must be > 0, got {getattr(self, name)!r}")
+        if not 0 <= self.momentum < 1:
+            raise ValueError(f"FCRBMConfig.momentum must be in [0, 1), got {self.momentum!r}")
+        if not self.weight_decay >= 0:
+            raise ValueError(f"FCRBMConfig.weight_decay must be >= 0, got {self.weight_decay!r}")
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain JSON-ready dictionary of every field."""
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> FCRBMConfig:
+        """Inverse of :meth:`to_dict`; unknown keys raise ``ValueError`` (typos fail loudly)."""
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(data) - known)
+        if unknown:
+            raise ValueError(f"unknown FCRBMConfig keys: {unknown}")
+        return cls(**data)
+
+
+_WEIGHTS = (
+    "w_vis", "w_hid", "w_ctx",
+    "a_past", "a_vis", "a_ctx",
+    "b_past", "b_hid", "b_ctx",
+)  # fmt: skip
+_BIASES = ("vis_bias", "hid_bias")
+
+
+class FCRBM(nn.Module):
+    """Factored Conditional RBM with Gaussian visible and binary hidden units.
+
+    Args:
+        config: sizes and training settings.
+
+    Attributes:
+        vis_bias: ``(D,)`` static visible bias ``a``.
+        hid_bias: ``(H,)`` static hidden bias ``b``.
+        w_vis, w_hid, w_ctx: ``(D, F)``, ``(H, F)``, ``(C, F)``, visible-hidden-context factors.
+        a_past, a_vis, a_ctx: ``(N*D, Fa)``, ``(D, Fa)``, ``(C, Fa)``, past-to-visible factors.
+        b_past, b_hid, b_ctx: ``(N*D, Fb)``, ``(H, Fb)``, ``(C, Fb)``, past-to-hidden factors.
+    """
+
+    def __init__(self, config: FCRBMConfig) -> None:
+        super().__init__()
+        self.config = config
+        c = config
+        gen = torch.Generator().manual_seed(c.seed)
+        past = c.order * c.visible
+        shapes = {
+            "w_vis": (c.visible, c.factors),
+            "w_hid": (c.hidden, c.factors),
+            "w_ctx": (c.context, c.factors),
+            "a_past": (past, c.factors_past_visible),
+            "a_vis": (c.visible, c.factors_past_visible),
+            "a_ctx": (c.context, c.factors_past_visible),
+            "b_past": (past, c.factors_past_hidden),
+            "b_hid": (c.hidden, c.factors_past_hidden),
+            "b_ctx": (c.context, c.factors_past_hidden),
+        }
+        for name, shape in shapes.items():
+            self.register_parameter(
+                name, nn.Parameter(torch.randn(shape, generator=gen) * c.init_std)
+            )
+        self.vis_bias = nn.Parameter(torch.zeros(c.visible))
+        self.hid_bias = nn.Parameter(torch.zeros(c.hidden))
+        self._velocity: dict[str, Tensor] = {}
+
+    # ------------------------------------------------------------------ checks and conversion
+
+    def _tensor(self, x: Any, name: str, shape: tuple[int | None, ...]) -> Tensor:
+        """``x`` as a tensor of the model's dtype and device, checked against ``shape``."""
+        ref = self.vis_bias
+        t = torch.as_tensor(x, dtype=ref.dtype, device=ref.device)
+        expected = tuple("B" if s is None else s for s in shape)
+        if t.ndim != len(shape) or any(
+            s is not None and t.shape[i] != s for i, s in enumerate(shape)
+        ):
+            raise ValueError(f"{name} must have shape {expected}, got {tuple(t.shape)}")
+        return t
+
+    def _inputs(self, past: Any, context: Any) -> tuple[Tensor, Tensor]:
+        c = self.config
+        p = self._tensor(past, "past", (None, c.order, c.visible))
+        z = self._tensor(context, "context", (None, c.context))
+        if p.shape[0] != z.shape[0]:
+            raise ValueError(f"past and context batch sizes differ: {p.shape[0]} != {z.shape[0]}")
+        return p, z
+
+    def _check_batch(self, x: Tensor, name: str, batch: int) -> None:
+        if x.shape[0] != batch:
+            raise ValueError(f"{name} batch size {x.shape[0]} != past batch size {batch}")
+
+    # ------------------------------------------------------------------ conditionals
+
+    def dynamic_biases(self, past: Any, context: Any) -> tuple[Tensor, Tensor]:
+        """Visible and hidden biases given the past frames and the context.
+
+        Args:
+            past: ``(B, N, D)`` past frames in time order.
+            context: ``(B, C)`` context of the current frame.
+
+        Returns:
+            ``â`` of shape ``(B, D)`` and ``b̂`` of shape ``(B, H)``.
+        """
+        p, z = self._inputs(past, context)
+        return self._biases(p.reshape(p.shape[0], -1), z)
+
+    def _biases(self, p: Tensor, z: Tensor) -> tuple[Tensor, Tensor]:
+        a_hat = self.vis_bias + ((p @ self.a_past) * (z @ self.a_ctx)) @ self.a_vis.T
+        b_hat = self.hid_bias + ((p @ self.b_past) * (z @ self.b_ctx)) @ self.b_hid.T
+        return a_hat, b_hat
+
+    def _hidden_input(self, v: Tensor, zf: Tensor, b_hat: Tensor) -> Tensor:
+        return b_hat + ((v @ self.w_vis) * zf) @ self.w_hid.T
+
+    def _visible_mean(self, h: Tensor, zf: Tensor, a_hat: Tensor) -> Tensor:
+        return a_hat + ((h @ self.w_hid) * zf) @ self.w_vis.T
+
+    def hidden_probabilities(self, v: Any, past: Any, context: Any) -> Tensor:
+        """``p(h_j = 1 | v, v_<t, z)``.
+
+        Args:
+            v: ``(B, D)`` current frames.
+            past: ``(B, N, D)`` past frames in time order.
+            context: ``(B, C)`` context of the current frames.
+
+        Returns:
+            ``(B, H)`` probabilities in ``(0, 1)``.
+        """
+        p, z = self._inputs(past, context)
+        vt = self._tensor(v, "v", (None, self.config.visible))
+        self._check_batch(vt, "v", p.shape[0])
+        _, b_hat = self._biases(p.reshape(p.shape[0], -1), z)
+        return torch.sigmoid(self._hidden_input(vt, z @ self.w_ctx, b_hat))
+
+    def visible_mean(self, h: Any, past: Any, context: Any) -> Tensor:
+        """Mean of the unit-variance Gaussian ``p(v | h, v_<t, z)``.
+
+        Args:
+            h: ``(B, H)`` hidden states or probabilities.
+            past: ``(B, N, D)`` past frames in time order.
+            context: ``(B, C)`` context of the current frames.
+
+        Returns:
+            ``(B, D)`` visible means.
+        """
+        p, z = self._inputs(past, context)
+        ht = self._tensor(h, "h", (None, self.config.hidden))
+        self._check_batch(ht, "h", p.shape[0])
+        a_hat, _ = self._biases(p.reshape(p.shape[0], -1), z)
+        return self._visible_mean(ht, z @ self.w_ctx, a_hat)
+
+    def free_energy(self, v: Any, past: Any, context: Any) -> Tensor:
+        """Free energy ``F(v | v_<t, z) = −log Σ_h exp(−E)`` up to a constant.
+
+        Args:
+            v: ``(B, D)`` current frames.
+            past: ``(B, N, D)`` past frames in time order.
+            context: ``(B, C)`` context of the current frames.
+
+        Returns:
+            ``(B,)`` free energies.
+        """
+        p, z = self._inputs(past, context)
+        vt = self._tensor(v, "v", (None, self.config.visible))
+        self._check_batch(vt, "v", p.shape[0])
+        a_hat, b_hat = self._biases(p.reshape(p.shape[0], -1), z)
+        return self._free_energy(vt, z @ self.w_ctx, a_hat, b_hat)
+
+    def _free_energy(self, v: Tensor, zf: Tensor, a_hat: Tensor, b_hat: Tensor) -> Tensor:
+        quadratic = 0.5 * ((v - a_hat) ** 2).sum(-1)
+        return quadratic - nn.functional.softplus(self._hidden_input(v, zf, b_hat)).sum(-1)
+
+    # ------------------------------------------------------------------ training
+
+    def cd_gradients(
+        self,
+        v: Any,
+        past: Any,
+        context: Any,
+        generator: torch.Generator | None = None,
+    ) -> tuple[dict[str, Tensor], float]:
+        """CD-k estimate of the gradient of the mean negative log-likelihood.
+
+        The chain starts from sampled hidden states of the data; the visible units are
+        reconstructed mean-field (noise-free, as in Taylor's code, which lowers the variance of
+        the estimate on unit-variance data); the ``k``-th reconstruction is the negative sample.
+
+        Args:
+            v: ``(B, D)`` current frames.
+            past: ``(B, N, D)`` past frames in time order.
+            context: ``(B, C)`` context of the current frames.
+            generator: random generator of the hidden samples (``None``: torch's global one).
+
+        Returns:
+            The gradient of every parameter by name (descend it), and the mean squared error of
+            the first reconstruction (per value).
+        """
+        p, z = self._inputs(past, context)
+        vt = self._tensor(v, "v", (None, self.config.visible))
+        self._check_batch(vt, "v", p.shape[0])
+        p = p.reshape(p.shape[0], -1)
+        with torch.no_grad():
+            a_hat, b_hat = self._biases(p, z)
+            zf = z @ self.w_ctx
+            prob = torch.sigmoid(self._hidden_input(vt, zf, b_hat))
+            h = torch.bernoulli(prob, generator=generator)
+            recon_error = math.nan
+            for step in range(self.config.cd_steps):
+                neg = self._visible_mean(h, zf, a_hat)
+                if step == 0:
+                    recon_error = float(((neg - vt) ** 2).mean())
+                if step + 1 < self.config.cd_steps:
+                    prob = torch.sigmoid(self._hidden_input(neg, zf, b_hat))
+                    h = torch.bernoulli(prob, generator=generator)
+        with torch.enable_grad():
+            a_hat, b_hat = self._biases(p, z)
+            zf = z @ self.w_ctx
+            loss = (
+                self._free_energy(vt, zf, a_hat, b_hat) - self._free_energy(neg, zf, a_hat, b_hat)
+            ).mean()
+            names = [*_WEIGHTS, *_BIASES]
+            grads = torch.autograd.grad(loss, [getattr(self, n) for n in names])
+        return dict(zip(names, grads, strict=True)), recon_error
+
+    def train_step(
+        self,
+        v: Any,
+        past: Any,
+        context: Any,
+        generator: torch.Generator | None = None,
+    ) -> float:
+        """One CD-k update with momentum and weight decay, applied in place.
+
+        ``velocity = momentum · velocity − lr · (grad + weight_decay · weight)``, then
+        ``param += velocity`` (no decay on the biases).
+
+        Args:
+            v: ``(B, D)`` current frames.
+            past: ``(B, N, D)`` past frames in time order.
+            context: ``(B, C)`` context of the current frames.
+            generator: random generator of the hidden samples.
+
+        Returns:
+            The mean squared reconstruction error of the batch before the update.
+        """
+        c = self.config
+        grads, recon_error = self.cd_gradients(v, past, context, generator)
+        with torch.no_grad():
+            for name, grad in grads.items():
+                param = getattr(self, name)
+                step = grad + c.weight_decay * param if name in _WEIGHTS else grad
+                vel = self._velocity.get(name)
+                vel = (
+                    -c.learning_rate * step
+                    if vel is None
+                    else c.momentum * vel - (c.learning_rate * step)
+                )
+                self._velocity[name] = vel
+                param.add_(vel)
+        return recon_error
+
+    # ------------------------------------------------------------------ generation
+
+    @torch.no_grad()
+    def generate(
+        self,
+        past: Any,
+        context: Any,
+        steps: int | None = None,
+        gibbs: int | None = None,
+        generator: torch.Generator | None = None,
+    ) -> Tensor:
+        """Generate frames autoregressively, the context possibly changing every frame.
+
+        Each frame starts its chain from the previous frame, runs ``gibbs`` alternating
+        iterations (sampled hidden units, mean-field visible units) and ends with a mean-field
+        step (hidden probabilities), which removes the sampling noise from the output frame.
+
+        Args:
+            past: ``(B, N, D)`` seed frames in time order.
+            context: ``(T, B, C)`` one context per generated frame, or ``(B, C)`` for all.
+            steps: ``T``; required with a ``(B, C)`` context, else must match it.
+            gibbs: Gibbs iterations per frame (default ``config.gibbs``).
+            generator: random generator (default: seeded with ``config.seed``), so the same
+                generator state gives the same frames.
+
+        Returns:
+            ``(B, T, D)`` generated frames.
+        """
+        c = self.config
+        p = self._tensor(past, "past", (None, c.order, c.visible))
+        batch = p.shape[0]
+        z = torch.as_tensor(context, dtype=p.dtype, device=p.device)
+        if z.ndim == 2:
+            z = self._tensor(z, "context", (batch, c.context))
+            if steps is None:
+                raise ValueError("steps is required when context has shape (B, C)")
+            z = z.expand(steps, batch, c.context)
+        else:
+            z = self._tensor(z, "context", (None, batch, c.context))
+            if steps is not None and steps != z.shape[0]:
+                raise ValueError(f"steps={steps} != {z.shape[0]} frames of context (T, B, C)")
+        if z.shape[0] < 1:
+            raise ValueError("generate needs at least one step")
+        n_gibbs = c.gibbs if gibbs is None else gibbs
+        if n_gibbs < 1:
+            raise ValueError(f"gibbs must be >= 1, got {n_gibbs}")
+        gen = (
+            generator
+            if generator is not None
+            else torch.Generator(device=p.device).manual_seed(c.seed)
+        )
+        window = p.clone()
+        out = torch.empty(batch, z.shape[0], c.visible, dtype=p.dtype, device=p.device)
+        for t in range(z.shape[0]):
+            a_hat, b_hat = self._biases(window.reshape(batch, -1), z[t])
+            zf = z[t] @ self.w_ctx
+            v = window[:, -1]
+            for it in range(n_gibbs):
+                prob = torch.sigmoid(self._hidden_input(v, zf, b_hat))
+                h = prob if it == n_gibbs - 1 else torch.bernoulli(prob, generator=gen)
+                v = self._visible_mean(h, zf, a_hat)
+            out[:, t] = v
+            window = torch.cat([window[:, 1:], v[:, None]], dim=1)
+        return out
+
+
+def sliding_windows(frames: Any, context: Any, order: int) -> tuple[Tensor, Tensor, Tensor]:
+    """Cut one sequence into training examples ``(v_t, v_<t, z_t)``.
+
+    Args:
+        frames: ``(T, D)`` standardized frames.
+        context: ``(T, C)`` per-frame context.
+        order: ``N`` past frames per example.
+
+    Returns:
+        ``v`` ``(T−N, D)``, ``past`` ``(T−N, N, D)`` and ``context`` ``(T−N, C)``.
+    """
+    x = torch.as_tensor(frames)
+    z = torch.as_tensor(context, dtype=x.dtype)
+    if x.ndim != 2 or z.ndim != 2 or x.shape[0] != z.shape[0]:
+        raise ValueError(
+            f"frames (T, D) and context (T, C) must share T, got {tuple(x.shape)} and "
+            f"{tuple(z.shape)}"
+        )
+    if order < 1 or x.shape[0] <= order:
+        raise ValueError(f"need order >= 1 and more than order={order} frames, got {x.shape[0]}")
+    past = x.unfold(0, order, 1)[:-1].transpose(1, 2)
+    return x[order:], past, z[order:]
