@@ -30,14 +30,18 @@ test: install lint $(THREEJS)/node_modules/.package-lock.json
 	$(BIN)/python -m pytest
 
 demo: install
-	$(BIN)/emotive data fetch bandai-namco-1
-	$(BIN)/emotive info "$$($(BIN)/emotive data path bandai-namco-1)/data/$(CLIP)"
 	mkdir -p demo_out
+	for e in happy sad angry neutral; do \
+		$(BIN)/emotive generate --emotion $$e --path circle --seconds 10 \
+			--out demo_out/walk_$$e.bvh --preview demo_out/walk_$$e.mp4 || exit 1; \
+	done
+	$(BIN)/emotive generate --emotion-schedule examples/angry-to-happy.json --path figure8 \
+		--seconds 20 --out demo_out/angry_to_happy.bvh --preview demo_out/angry_to_happy.mp4
+	$(BIN)/emotive data fetch bandai-namco-1
 	$(BIN)/emotive features "$$($(BIN)/emotive data path bandai-namco-1)/data/$(CLIP)" \
 		--out demo_out/features.csv --plot demo_out/features.png
-	$(BIN)/emotive preview "$$($(BIN)/emotive data path bandai-namco-1)/data/$(CLIP)" \
-		--out demo_out/walk_happy.mp4 --caption happy
-	@echo "demo outputs: demo_out/features.csv demo_out/features.png demo_out/walk_happy.mp4"
+	@echo "demo outputs in $(CURDIR)/demo_out:"
+	@ls -1 demo_out
 
 bench: install
 	$(BIN)/python bench/run.py

@@ -20,6 +20,7 @@ sys.path.insert(0, str(HERE))
 import bench_bvh  # noqa: E402
 import bench_data  # noqa: E402
 import bench_features  # noqa: E402
+import bench_gait  # noqa: E402
 import bench_kinematics  # noqa: E402
 from common import machine_info  # noqa: E402
 
@@ -49,6 +50,9 @@ def main() -> None:
         ("kinematics", lambda: bench_kinematics.run(walk)),
         ("features", lambda: bench_features.run(walk)),
         ("data", lambda: bench_data.run(repeats=1 if args.quick else 3)),
+        ("gait", lambda: bench_gait.run(
+            agents=(1, 10, 100) if args.quick else (1, 10, 100, 1000),
+            baseline_agents=(1, 10) if args.quick else (1, 10, 100))),
     ):
         print(f"running {name} ...", flush=True)
         results += fn()

@@ -44,3 +44,7 @@ class EmotionError(EmotiveError):
 
 class PathError(EmotiveError):
     """A path that cannot be followed: too few or repeated points, zero length, bad file."""
+
+
+class OutputError(EmotiveError):
+    """An output file that cannot be written: unknown suffix or missing folder."""

@@ -117,3 +117,19 @@ class TestForwardKinematics:
         assert isinstance(gpos, np.ndarray) and gpos.dtype == np.float64
         np.testing.assert_allclose(grot, ref[0].numpy())
         np.testing.assert_allclose(gpos, ref[1].numpy())
+
+
+def test_pose_fk_matches_the_joint_loop_and_places_end_sites():
+    from emotive.transforms.kinematics import PoseFK
+
+    g = torch.Generator().manual_seed(4)
+    offsets = torch.randn(len(TREE), 3, generator=g, dtype=DT)
+    q = quaternion_normalize(torch.randn(5, len(TREE), 4, generator=g, dtype=DT))
+    ends, end_offsets = [3, 6], torch.randn(2, 3, generator=g, dtype=DT)
+    fk = PoseFK(TREE, offsets.numpy(), ends, end_offsets.numpy(), dtype=DT)
+    got = fk(q)
+    grot, gpos = loop_fk(q, offsets.expand(5, -1, -1), TREE)
+    torch.testing.assert_close(got[:, :len(TREE)], gpos)
+    expected = quaternion_apply(grot[:, ends], end_offsets) + gpos[:, ends]
+    torch.testing.assert_close(got[:, len(TREE):], expected)
+    assert PoseFK(CHAIN, np.zeros((3, 3)), dtype=DT)(q[:, :3]).shape == (5, 3, 3)

@@ -12,10 +12,12 @@ from typing import Annotated
 import typer
 
 from emotive.commands.train_gait import train_gait_command
+from emotive.commands.train_quaternet import train_quaternet_command
 
 train_app = typer.Typer(help="Train models on the real data sets.", no_args_is_help=True,
                         add_completion=False)
 train_app.command("gait")(train_gait_command)
+train_app.command("quaternet")(train_quaternet_command)
 
 ModelOpt = Annotated[
     Path | None,
@@ -135,8 +137,10 @@ def train_classifier_command(
 
 def evaluate(
     model: Annotated[
-        str, typer.Option("--model", help="A folder of BVH files with intended emotions, or a "
-                          "model name (zero-velocity).", show_default=False)
+        str, typer.Option("--model", help="A folder of BVH files with intended emotions, a "
+                          "model name (emotive-gait, gait-no-affective, gait-no-root-loss, "
+                          "quaternet, zero-velocity) or a gait checkpoint (.pt).",
+                          show_default=False)
     ],
     suite: Annotated[
         str, typer.Option("--suite", help="table1, emotion, transition, path, longrun, quality, "

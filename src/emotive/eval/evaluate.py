@@ -3,9 +3,11 @@
 What can be evaluated (:func:`resolve_subject`):
 
 * a folder of BVH files with intended emotions (:func:`emotive.eval.sources.read_folder`);
-* a motion predictor by name (:data:`PREDICTORS`: the zero-velocity baseline for now; the
-  project's networks register here as they land);
-* a generator (:class:`~emotive.eval.sources.Generator`), asked for the standard requests.
+* a motion predictor by name (:data:`PREDICTORS`: the zero-velocity baseline);
+* a model by name (:data:`MODELS`: the pretrained gait network, its two ablations and the
+  QuaterNet baseline) or a gait checkpoint file: predictors for Table 1, and for the gait
+  network a generator (:class:`~emotive.eval.sources.Generator`) asked for the standard
+  requests.
 
 Suites (:data:`SUITES`) declare what they need: motions with intended emotions (``emotion``,
 ``transition``, ``path``, ``longrun``, ``quality``, ``affect``), a predictor (``table1``) or a
@@ -44,7 +46,7 @@ PREDICTORS: dict[str, Callable[[], Predictor]] = {"zero-velocity": ZeroVelocity}
 
 @dataclass
 class Subject:
-    """What is evaluated: exactly one of motions, predictor or generator is set.
+    """What is evaluated: motions, a predictor, a generator, or a predictor and a generator.
 
     Attributes:
         name: for the report.
@@ -70,20 +72,68 @@ class Subject:
         return out
 
 
+def gait_subject(checkpoint: str | Path | None = None) -> Subject:
+    """The gait network of a checkpoint (default: the pretrained one) as a predictor (Table 1)
+    and a generator (every motion suite and speed)."""
+    from emotive.models.gait.generate import NetworkGenerator
+    from emotive.models.gait.model import load_gait_model
+    from emotive.models.gait.predict import GaitPredictor
+
+    model = load_gait_model(checkpoint)
+    name = "emotive-gait" if checkpoint is None else Path(checkpoint).stem
+    return Subject(name, predictor=GaitPredictor(model, name="Ours"),
+                   generator=NetworkGenerator(model, name=name))
+
+
+def quaternet_subject(checkpoint: str | Path | None = None) -> Subject:
+    """The QuaterNet baseline of a checkpoint (default: the committed one) as a predictor."""
+    from emotive.models.gait.controls import GaitControls
+    from emotive.models.gait.predict import QuaterNetPredictor
+    from emotive.models.quaternet.training import load_quaternet_checkpoint
+
+    path = Path(checkpoint) if checkpoint is not None else baseline_path("quaternet")
+    network, ckpt = load_quaternet_checkpoint(path)
+    return Subject("quaternet", predictor=QuaterNetPredictor(
+        network, GaitControls.from_dict(ckpt["controls"])))
+
+
+def baseline_path(name: str) -> Path:
+    """A committed baseline or ablation checkpoint, ``emotive/assets/gait/<name>.pt``."""
+    from emotive.models.gait.model import default_checkpoint_path
+
+    return default_checkpoint_path().with_name(f"{name}.pt")
+
+
+#: Subjects by name, beyond :data:`PREDICTORS`: the pretrained gait network, its ablations and
+#: the QuaterNet baseline (committed checkpoints).
+MODELS: dict[str, Callable[[], Subject]] = {
+    "emotive-gait": gait_subject,
+    "gait-no-affective": lambda: gait_subject(baseline_path("gait-no-affective")),
+    "gait-no-root-loss": lambda: gait_subject(baseline_path("gait-no-root-loss")),
+    "quaternet": quaternet_subject,
+}
+
+
 def resolve_subject(spec: str | Path, labels: tuple[str, ...] = DEFAULT_LABELS) -> Subject:
-    """A folder of BVH files or a registered predictor name.
+    """A folder of BVH files, a registered model or predictor name (:data:`MODELS`,
+    :data:`PREDICTORS`), or a gait checkpoint file (``.pt``).
 
     Raises:
-        EvaluationError: neither.
+        EvaluationError: none of these.
     """
     text = str(spec)
     if Path(text).is_dir():
         return Subject(Path(text).name or text, read_motions=lambda: read_folder(text, labels))
     if text in PREDICTORS:
         return Subject(text, predictor=PREDICTORS[text]())
+    if text in MODELS:
+        return MODELS[text]()
+    if text.endswith(".pt"):
+        return gait_subject(text)
     raise EvaluationError(
         f"cannot evaluate {text!r}: give a folder of BVH files (with labels.json or Bandai "
-        f"file names) or one of the models {', '.join(PREDICTORS)}"
+        f"file names), a gait checkpoint (.pt) or one of the models "
+        f"{', '.join([*MODELS, *PREDICTORS])}"
     )
 
 
@@ -171,8 +221,11 @@ SUITES: dict[str, tuple[str, Callable[[Context], dict]]] = {
 
 
 def run_suites(subject: Subject, suite: str, classifier: EmotionClassifier | None = None,
-               progress: bool = False) -> tuple[dict[str, dict], dict]:
+               progress: bool = False, requests: list[GenerationRequest] | None = None,
+               ) -> tuple[dict[str, dict], dict]:
     """Run one suite or ``"all"`` on a subject.
+
+    ``requests`` replace :func:`~emotive.eval.sources.standard_requests` for a generator.
 
     Returns:
         ``(suite name -> result, facts for the report)``.
@@ -196,7 +249,8 @@ def run_suites(subject: Subject, suite: str, classifier: EmotionClassifier | Non
             f"{', '.join(s for s, (n, _) in SUITES.items() if n in provided)}"
         )
     classifier = classifier or load_default_classifier()
-    ctx = Context(subject, classifier, standard_requests(classifier.labels))
+    ctx = Context(subject, classifier,
+                  requests if requests is not None else standard_requests(classifier.labels))
     results = {}
     for name in track(names, description="evaluating", disable=not progress,
                       console=Console(stderr=True), transient=True):

@@ -99,3 +99,54 @@ def forward_kinematics_np(
 ) -> tuple[np.ndarray, np.ndarray]:
     """NumPy wrapper of :func:`forward_kinematics` (same shapes, dtype preserved)."""
     return numpy_kernel(forward_kinematics)(local_rotations, local_positions, list(parents))
+
+
+class PoseFK:
+    """Joint and end-site positions of one rig with fixed bone offsets, for many poses fast.
+
+    :func:`forward_kinematics` takes any translations and recomputes the tree's levels on
+    every call; streaming animation calls FK once per frame on a fixed rig, where that
+    overhead dominates. Here levels, parents and offsets are prepared once and the rotations
+    are composed as matrices (one conversion, then one matrix product per tree level).
+
+    Args:
+        parents: ``J`` parent indices in topological order.
+        offsets: ``(J, 3)`` local translations (the roots' their positions).
+        end_site_parents: ``E`` joints the end sites hang from.
+        end_site_offsets: ``(E, 3)`` end-site offsets.
+        dtype: float type of the computation.
+    """
+
+    def __init__(self, parents: Sequence[int], offsets: torch.Tensor | np.ndarray,
+                 end_site_parents: Sequence[int] = (),
+                 end_site_offsets: torch.Tensor | np.ndarray | None = None,
+                 dtype: torch.dtype = torch.float32) -> None:
+        self.levels = [torch.as_tensor(level) for level in depth_levels(parents)]
+        self.parents = [torch.as_tensor(np.asarray(parents)[level.numpy()])
+                        for level in self.levels]
+        self.offsets = torch.as_tensor(np.array(offsets), dtype=dtype)[..., None]
+        self.num_joints = len(parents)
+        self.end_parents = torch.as_tensor(np.array(end_site_parents, dtype=np.int64))
+        ends = np.zeros((0, 3)) if end_site_offsets is None else np.asarray(end_site_offsets)
+        self.end_offsets = torch.as_tensor(ends.reshape(-1, 3).copy(), dtype=dtype)[..., None]
+
+    def __call__(self, rotations: torch.Tensor) -> torch.Tensor:
+        """``(B, J + E, 3)`` world positions of ``(B, J, 4)`` local unit quaternions."""
+        from emotive.transforms.rotations import quaternion_to_matrix
+
+        local = quaternion_to_matrix(rotations)
+        batch = rotations.shape[0]
+        world_r = local.new_empty(batch, self.num_joints, 3, 3)
+        world_x = local.new_empty(batch, self.num_joints, 3, 1)
+        for level, par in zip(self.levels, self.parents, strict=True):
+            if par[0] < 0:
+                world_r[:, level] = local[:, level]
+                world_x[:, level] = self.offsets[level]
+            else:
+                pr = world_r[:, par]
+                world_r[:, level] = pr @ local[:, level]
+                world_x[:, level] = pr @ self.offsets[level] + world_x[:, par]
+        if len(self.end_parents):
+            ends = world_r[:, self.end_parents] @ self.end_offsets + world_x[:, self.end_parents]
+            world_x = torch.cat((world_x, ends), 1)
+        return world_x[..., 0]

@@ -11,9 +11,9 @@ from emotive.core.roles import resolve_roles
 from emotive.data.clips import load_clips
 from emotive.data.emotion import ALL_LABELS, DEFAULT_LABELS, style_to_label
 from emotive.errors import DataError, EmotionError
-from emotive.features.affective import affective_features_np
 from emotive.features.movement import movement_features
 from emotive.models.gait import GaitConfig, GaitNetwork
+from emotive.models.gait.affect import gait_affective_np
 from emotive.models.gait.data import build_gait_data, load_gait_data
 from emotive.transforms.kinematics import forward_kinematics_np
 from emotive.transforms.np_rotations import quaternion_apply
@@ -87,7 +87,7 @@ def test_targets_are_the_clip_frames_shifted_by_one(train, clips):
             (mf.root_height, mf.root_speed, mf.orientation_difference), 1)[s + 1:s + LENGTH + 1],
             atol=1e-5)
         np.testing.assert_allclose(b.inputs().affective[0].numpy(),
-                                   affective_features_np(world, roles)[s:s + LENGTH], atol=1e-4)
+                                   gait_affective_np(world, roles)[s:s + LENGTH], atol=1e-4)
         theta = mf.step_phase[s:s + LENGTH]
         np.testing.assert_allclose(b.inputs().movement[0, :, :2].numpy(),
                                    np.stack((np.sin(theta), np.cos(theta)), 1), atol=1e-5)
@@ -97,22 +97,28 @@ def test_targets_are_the_clip_frames_shifted_by_one(train, clips):
         np.testing.assert_allclose(dots, 1.0, atol=1e-5)
 
 
-def test_windows_are_canonicalize_facing_of_the_window(train, clips):
+def test_every_frame_is_canonicalize_facing_of_that_frame(train, clips):
     n = len(train) // 2
     k = train.window_clip[n]
     motion = clips[train.clips[k].name].motion
     s = int(train.starts[n] - train.clip_offsets[k])
-    expected = canonicalize_facing(crop(motion, s, s + LENGTH + 1)).positions_with_end_sites()
     b = train.batch([n])
     got = world_with_end_sites(b.rotations[0].numpy(), b.positions[0].numpy(), train.skeleton)
-    # canonicalize_facing moves the file root joint_Root, which carries no body point; the
-    # data moves the hips instead, so every body point must agree.
-    np.testing.assert_allclose(got[:, 1:], expected[:, 1:], atol=1e-4)
-    # The hips carry the heading (joint_Root stays at the identity), facing +Z at frame 0.
+    for t in (0, LENGTH // 2, LENGTH):
+        expected = canonicalize_facing(crop(motion, s + t, s + t + 1)).positions_with_end_sites()
+        # canonicalize_facing moves the file root joint_Root, which carries no body point; the
+        # data moves the hips instead, so every body point must agree.
+        np.testing.assert_allclose(got[t, 1:], expected[0, 1:], atol=1e-4)
+    # The hips carry the heading (joint_Root stays at the identity): facing +Z in every frame.
     assert train.mover == 1
     np.testing.assert_allclose(np.abs(b.rotations[0, :, 0, 0].numpy()), 1.0, atol=1e-6)
     placed = motion.replace(rotations=b.rotations[0].numpy(), positions=b.positions[0].numpy())
-    assert abs(heading(placed)[0]) < 1e-4
+    np.testing.assert_allclose(heading(placed), 0.0, atol=1e-4)
+
+
+def test_mover_quaternions_share_one_hemisphere(train):
+    q = train.rotations[:, train.mover]
+    assert np.all((q * q[:1]).sum(-1) > 0)
 
 
 def test_rotations_are_sign_continuous_within_clips(train):
@@ -151,3 +157,15 @@ def test_labels_filter_clips_and_bad_input_raises(clips):
         build_gait_data([], ALL_LABELS, LENGTH, STRIDE)
     with pytest.raises(DataError, match="frames a window needs"):
         build_gait_data(some, ALL_LABELS, 100_000, STRIDE)
+
+
+def test_fold_into_root_moves_the_trajectory_into_the_hips(clips):
+    from emotive.models.gait.data import fold_into_root
+
+    motion = clips["dataset-1_walk_normal_002"].motion
+    assert np.abs(motion.positions[:, 0]).max() > 1.0  # joint_Root carries the trajectory
+    folded = fold_into_root(motion, 1)
+    np.testing.assert_allclose(folded.positions_with_end_sites()[:, 1:],
+                               motion.positions_with_end_sites()[:, 1:], atol=1e-9)
+    np.testing.assert_array_equal(folded.positions[:, 0], 0.0)
+    np.testing.assert_array_equal(folded.rotations[:, 0], [[1, 0, 0, 0]] * motion.num_frames)

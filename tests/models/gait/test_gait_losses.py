@@ -12,7 +12,6 @@ import torch
 from gait_helpers import NUM_JOINTS, random_inputs, random_pose
 
 from emotive.core import Motion, Skeleton
-from emotive.features.affective import affective_features_np
 from emotive.models.gait import (
     GaitConfig,
     GaitLoss,
@@ -26,6 +25,7 @@ from emotive.models.gait import (
     rig_positions,
     root_loss,
 )
+from emotive.models.gait.affect import gait_affective_np
 from emotive.transforms.np_rotations import euler_to_quaternion
 from emotive.transforms.rotations import quaternion_multiply, yaw_quaternion
 
@@ -132,13 +132,13 @@ class TestPositionLosses:
             yaw_quaternion(torch.tensor(1.3, dtype=torch.float64)), q[:, 0]))
         assert float(affective_loss(turned, q, pos, rig)) == pytest.approx(0.0, abs=1e-16)
 
-    def test_affective_loss_matches_the_numpy_features(self, skeleton, rig):
+    def test_affective_loss_matches_the_numpy_features_with_log_ratios(self, skeleton, rig):
         q, pos, _ = random_pose(skeleton, (3,), seed=9)
         other, _, _ = random_pose(skeleton, (3,), seed=10)
 
         def features(rotations):
             motion = Motion(skeleton, rotations.numpy(), pos.numpy(), 30.0)
-            return affective_features_np(motion.positions_with_end_sites(), rig.roles)
+            return gait_affective_np(motion.positions_with_end_sites(), rig.roles)
 
         expected = ((features(other) - features(q)) ** 2).sum(-1).mean()
         assert float(affective_loss(other, q, pos, rig)) == pytest.approx(expected, rel=1e-9)

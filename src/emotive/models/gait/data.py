@@ -16,7 +16,7 @@ Per frame and clip:
 * local rotations ``q`` ``(J, 4)`` with quaternion sign continuity over the clip (consecutive
   frames in one hemisphere, so the network never sees a jump between ``q`` and ``-q``);
 * the 18 affective features ``a`` from world positions of joints and end sites (hand tips and
-  toes are end sites on the Bandai rig);
+  toes are end sites on the Bandai rig), ratios in log space (:mod:`~emotive.models.gait.affect`);
 * movement inputs ``[sin theta, cos theta, omega, s_lowpass, kappa]`` and root features
   ``[h, s, delta]`` (:func:`emotive.features.movement.movement_features`);
 * the emotion vector ``m``: one-hot of the clip's style over the config's labels (with
@@ -24,17 +24,20 @@ Per frame and clip:
 * local translations for forward kinematics in the losses.
 
 World heading. The network predicts local rotations of every joint, the hips' included, and
-the hips' rotation holds the character's world heading. So that the network never has to
-learn absolute headings, every window is made heading-canonical at its first frame, exactly as
-:func:`emotive.core.ops.canonicalize_facing` would do to the window: a rotation about Y and a
-slide on the ground put the root role over the origin facing +Z at the window's first frame,
-and the rest of the window moves rigidly with it (turns inside a window stay). Every feature
-above is unchanged by this (affective features and movement features are invariant to yaw and
-ground translation), so features are computed per clip and only rotations and translations
-are moved, per batch. The transform is applied to the local frame of the *mover*: the root
-role joint (``Hips``) when all its ancestors are static at the identity (the Bandai file root
-``joint_Root``), so the heading lands in the hips' rotation the network predicts, otherwise the
-rig's root joint, as ``canonicalize_facing`` does.
+the hips' rotation holds the character's world heading. The network never sees that heading:
+every frame is made heading-canonical on its own, exactly as
+:func:`emotive.core.ops.canonicalize_facing` would do to that single frame: a rotation about Y
+and a slide on the ground put the root role over the origin facing +Z. The world heading and
+the path are the path follower's business at animation time
+(:mod:`emotive.models.gait.generate`), which turns the body to the path's tangent corrected
+by the predicted ``delta``; the network predicts the pose in the body's own frame (lean, twist
+of the hips against the facing, limbs), driven by the movement inputs (curvature among them)
+and the emotion. Every feature above is unchanged by this (affective features and movement
+features are invariant to yaw and ground translation), so features are computed per clip and
+only rotations and translations are moved, once, when the data is built. The transform is
+applied to the local frame of the *mover*, the root role joint (``Hips``), so the heading lands
+in the hips' rotation the network predicts; the transforms of its ancestors (the Bandai file
+root ``joint_Root``), where they move, are first folded into it (:func:`fold_into_root`).
 
 Targets are the inputs shifted by one frame: a window of ``T + 1`` frames gives inputs from
 frames ``0 .. T - 1`` and targets from frames ``1 .. T`` (:class:`GaitBatch`).
@@ -65,7 +68,7 @@ MIN_STD = 1e-3
 
 
 class GaitBatch(NamedTuple):
-    """``B`` windows of ``T + 1`` frames, heading-canonical at their first frame.
+    """``B`` windows of ``T + 1`` frames, every frame heading-canonical.
 
     Attributes:
         rotations: ``(B, T + 1, J, 4)`` local unit quaternions.
@@ -175,7 +178,7 @@ class GaitData:
 
     def batch(self, index: np.ndarray | Sequence[int], dtype: torch.dtype = torch.float32
               ) -> GaitBatch:
-        """The windows ``index``, heading-canonical at their first frame.
+        """The windows ``index``, every frame heading-canonical (facing +Z over the origin).
 
         Args:
             index: ``(B,)`` window indices.
@@ -184,53 +187,59 @@ class GaitData:
         Returns:
             The :class:`GaitBatch`.
         """
-        from emotive.transforms.rotations import (
-            quaternion_apply,
-            quaternion_multiply,
-            yaw_quaternion,
-        )
-
         first = self.starts[np.asarray(index, dtype=np.int64)]
         frames = first[:, None] + np.arange(self.length + 1)
-        rot = torch.from_numpy(self.rotations[frames].astype(np.float64))
-        pos = torch.from_numpy(self.positions[frames].astype(np.float64))
-        # x -> yaw(-heading) (x - root), on the ground plane, as canonicalize_facing does.
-        yaw = yaw_quaternion(torch.from_numpy(-self.heading[first]))[:, None]
-        shift = np.zeros((len(first), 1, 3))
-        shift[:, 0, [0, 2]] = -self.root_xz[first]
-        m = self.mover
-        pos[:, :, m] = quaternion_apply(yaw, pos[:, :, m] + torch.from_numpy(shift))
-        rot[:, :, m] = quaternion_multiply(yaw, rot[:, :, m])
 
         def cut(x: np.ndarray) -> torch.Tensor:
             return torch.from_numpy(x[frames]).to(dtype)
 
         return GaitBatch(
-            rot.to(dtype), pos.to(dtype), cut(self.affective), cut(self.movement),
+            cut(self.rotations), cut(self.positions), cut(self.affective), cut(self.movement),
             cut(self.root),
             torch.from_numpy(self.emotions[self.window_clip[np.asarray(index, dtype=np.int64)]])
             .to(dtype),
         )
 
 
-def _mover(clips: Sequence[Clip], root: int) -> int:
-    """The root role joint when its ancestors never move from the identity, else joint 0."""
-    sk = clips[0].motion.skeleton
-    chain = []
-    j = int(sk.parents[root])
+def fold_into_root(motion: Motion, root: int) -> Motion:
+    """The motion with the transforms of the root role's ancestors folded into the root role.
+
+    The root role's local transform becomes its world transform and its ancestors stay at the
+    identity, so that one joint (the *mover*) carries the whole world placement. Every joint
+    from the root role down keeps its world position. On the Bandai rig the file root
+    ``joint_Root`` sits at the origin in all but four short dataset-1 clips, where it carries
+    the trajectory instead of the hips.
+
+    Raises:
+        RigError: an ancestor of the root role has another child, which folding would move.
+    """
+    from emotive.errors import RigError
+    from emotive.transforms.kinematics import forward_kinematics_np
+
+    sk = motion.skeleton
+    chain, j = [], int(sk.parents[root])
     while j >= 0:
         chain.append(j)
         j = int(sk.parents[j])
-    for clip in clips:
-        rot, pos = clip.motion.rotations[:, chain], clip.motion.positions[:, chain]
-        if not (np.allclose(np.abs(rot[..., 0]), 1.0, atol=1e-9)
-                and np.allclose(pos, 0.0, atol=1e-9)):
-            return 0
-    return root
+    if not chain:
+        return motion
+    for a in chain:
+        children = [k for k in range(sk.num_joints) if sk.parents[k] == a]
+        if len(children) > 1 or a in sk.end_site_parents:
+            raise RigError(f"joint {sk.names[a]} above the root role {sk.names[root]} has other "
+                           "children; the gait network needs the root role's ancestors to carry "
+                           "nothing else")
+    grot, gpos = forward_kinematics_np(motion.rotations, motion.positions, list(sk.parents))
+    rotations, positions = motion.rotations.copy(), motion.positions.copy()
+    rotations[:, root], positions[:, root] = grot[:, root], gpos[:, root]
+    rotations[:, chain] = (1.0, 0.0, 0.0, 0.0)
+    positions[:, chain] = 0.0
+    return motion.replace(rotations=rotations, positions=positions)
 
 
 def clip_features(motion: Motion) -> dict[str, np.ndarray]:
-    """Per-frame quantities of one clip (see the module docstring).
+    """Per-frame quantities of one clip (see the module docstring), after
+    :func:`fold_into_root`.
 
     Args:
         motion: the clip, ``T`` frames.
@@ -244,24 +253,63 @@ def clip_features(motion: Motion) -> dict[str, np.ndarray]:
     """
     from emotive.core.ops import heading
     from emotive.core.roles import resolve_roles
-    from emotive.features.affective import affective_features_np
     from emotive.features.movement import movement_features
+    from emotive.models.gait.affect import gait_affective_np
     from emotive.transforms.np_rotations import quaternion_continuity
 
     roles = resolve_roles(motion.skeleton)
+    motion = fold_into_root(motion, int(roles.index["root"]))
     world = motion.positions_with_end_sites()
     mf = movement_features(world, roles, motion.fps)
     theta = mf.step_phase
     return {
         "rotations": quaternion_continuity(motion.rotations, dim=0),
         "positions": motion.positions,
-        "affective": affective_features_np(world, roles),
+        "affective": gait_affective_np(world, roles),
         "movement": np.stack((np.sin(theta), np.cos(theta), mf.step_frequency,
                               mf.root_speed_lowpass, mf.curvature), 1),
         "root": np.stack((mf.root_height, mf.root_speed, mf.orientation_difference), 1),
         "heading": heading(motion),
         "root_xz": world[:, roles.index["root"]][:, [0, 2]],
     }
+
+
+def canonical_frames(
+    rotations: np.ndarray, positions: np.ndarray, heading: np.ndarray, root_xz: np.ndarray,
+    mover: int,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Every frame heading-canonical: facing +Z with the root role over the origin.
+
+    ``x -> yaw(-heading_t) (x - root_t)`` on the ground plane, applied to the mover's local
+    transform; the mover's quaternions are then put in the hemisphere of the first frame's (a
+    yaw that wraps by ``2 pi`` flips a quaternion's sign, the rotation is the same).
+
+    Args:
+        rotations: ``(F, J, 4)`` local unit quaternions.
+        positions: ``(F, J, 3)`` local translations.
+        heading: ``(F,)`` body facing yaw, radians.
+        root_xz: ``(F, 2)`` ground position of the root role.
+        mover: the joint carrying the world placement.
+
+    Returns:
+        ``(F, J, 4)`` rotations and ``(F, J, 3)`` translations (new arrays).
+    """
+    from emotive.transforms.np_rotations import (
+        quaternion_apply,
+        quaternion_multiply,
+        yaw_quaternion,
+    )
+
+    yaw = yaw_quaternion(-np.asarray(heading, dtype=np.float64))
+    rot, pos = rotations.copy(), positions.copy()
+    shifted = positions[:, mover].copy()
+    shifted[:, [0, 2]] -= root_xz
+    pos[:, mover] = quaternion_apply(yaw, shifted)
+    q = quaternion_multiply(yaw, rotations[:, mover])
+    if len(q):
+        q *= np.where((q * q[:1]).sum(-1, keepdims=True) < 0, -1.0, 1.0)
+    rot[:, mover] = q
+    return rot, pos
 
 
 def build_gait_data(
@@ -313,7 +361,7 @@ def build_gait_data(
         sk = clip.motion.skeleton
         if sk.names != skeleton.names or not np.array_equal(sk.parents, skeleton.parents):
             raise DataError(f"clip {clip.name} has another joint hierarchy than {kept[0].name}")
-    mover = _mover(kept, int(resolve_roles(skeleton).index["root"]))
+    mover = int(resolve_roles(skeleton).index["root"])
     parts: dict[str, list[np.ndarray]] = {}
     offsets, starts, window_clip, emotions, infos = [0], [], [], [], []
     for clip in track(kept, description="gait features", disable=not progress,
@@ -337,10 +385,14 @@ def build_gait_data(
     def cat(key: str, dtype: type = np.float32) -> np.ndarray:
         return np.concatenate(parts[key]).astype(dtype)
 
+    heading_all, root_xz = cat("heading", np.float64), cat("root_xz", np.float64)
+    rotations, positions = canonical_frames(cat("rotations", np.float64),
+                                            cat("positions", np.float64), heading_all, root_xz,
+                                            mover)
     return GaitData(
-        rotations=cat("rotations"), positions=cat("positions"), affective=cat("affective"),
-        movement=cat("movement"), root=cat("root"), heading=cat("heading", np.float64),
-        root_xz=cat("root_xz", np.float64), clip_offsets=np.array(offsets, dtype=np.int64),
+        rotations=rotations.astype(np.float32), positions=positions.astype(np.float32),
+        affective=cat("affective"), movement=cat("movement"), root=cat("root"),
+        heading=heading_all, root_xz=root_xz, clip_offsets=np.array(offsets, dtype=np.int64),
         emotions=np.stack(emotions).astype(np.float32), clips=tuple(infos),
         starts=np.concatenate(starts), window_clip=np.concatenate(window_clip),
         length=int(length), mover=mover, skeleton=skeleton, fps=target, labels=tuple(labels),

@@ -11,7 +11,8 @@ then keep their meaning across settings).
   in each joint's own channel order, differences wrapped to ``(-pi, pi]``.
 * pose (9): ``sum_j |(X_j - X_0) - (X^_j - X^_0)|^2`` on forward-kinematics joint positions,
   ``X_0`` the position of the ``root`` role.
-* affective (10): ``|a - a^|^2`` over the 18 affective features of the poses.
+* affective (10): ``|a - a^|^2`` over the 18 affective features of the poses, ratios in log
+  space (:mod:`~emotive.models.gait.affect`).
 * root (11): ``|[h, s, delta] - [h^, s^, delta^]|_1``.
 * foot contact (12): ``|[lh, lt, rh, rt] - [lh^, lt^, rh^, rt^]|_1`` over heel (ankle) and
   toe positions.
@@ -28,8 +29,8 @@ import torch
 
 from emotive.core.roles import JointRoles, resolve_roles
 from emotive.core.skeleton import Skeleton
-from emotive.features.affective import affective_features
 from emotive.features.contacts import foot_positions
+from emotive.models.gait.affect import gait_affective
 from emotive.models.gait.config import GaitConfig
 from emotive.models.gait.network import GaitOutputs
 from emotive.transforms.kinematics import forward_kinematics
@@ -191,7 +192,7 @@ def _pose_term(pred_pos: torch.Tensor, true_pos: torch.Tensor, rig: GaitRig) -> 
 def _affective_term(
     pred_pos: torch.Tensor, true_pos: torch.Tensor, rig: GaitRig
 ) -> torch.Tensor:
-    diff = affective_features(true_pos, rig.roles) - affective_features(pred_pos, rig.roles)
+    diff = gait_affective(true_pos, rig.roles) - gait_affective(pred_pos, rig.roles)
     return _frame_mean((diff**2).sum(-1))
 
 
@@ -238,7 +239,8 @@ def affective_loss(
     """Equation (10): squared error of the 18 affective features of the poses.
 
     ``L_aff = mean_frames |a - a^|^2``, ``a`` from
-    :func:`emotive.features.affective.affective_features` on the forward-kinematics positions
+    :func:`emotive.models.gait.affect.gait_affective` (ratios in log space) on the
+    forward-kinematics positions
     of joints and end sites (hand tips and toes are end sites on the Bandai rig).
 
     Args:

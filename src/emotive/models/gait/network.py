@@ -303,3 +303,17 @@ class GaitNetwork(nn.Module):
         check("movement", inputs.movement, MOVEMENT_SIZE, ", ".join(MOVEMENT_INPUT_NAMES))
         check("root", inputs.root, ROOT_SIZE, ", ".join(ROOT_FEATURE_NAMES))
         return dims
+
+
+def same_hemisphere(q: torch.Tensor, reference: torch.Tensor) -> torch.Tensor:
+    """``q`` with each quaternion's sign flipped where it lies opposite ``reference``.
+
+    The motion loss compares Euler angles, which are the same for ``q`` and ``-q``, so the
+    network may predict either; the data it reads is sign-continuous over time. A prediction
+    fed back as the next input is put in the hemisphere of the input it followed.
+
+    Args:
+        q: ``(..., 4)`` quaternions.
+        reference: ``(..., 4)`` quaternions, broadcastable to ``q``.
+    """
+    return torch.where((q * reference).sum(-1, keepdim=True) < 0, -q, q)

@@ -7,7 +7,9 @@ curriculum learning by scheduled sampling: in epoch ``e`` (from 0) the teacher-f
 ``0.995 ** e``. Each input frame after the first of a batch is, with that probability, the
 data (teacher-forced) and otherwise the network's own prediction of it: predicted rotations,
 predicted root features ``[h, s, delta]`` and the affective features of the predicted pose
-(forward kinematics with :func:`~emotive.models.gait.losses.rig_positions`). The movement
+(forward kinematics with :func:`~emotive.models.gait.losses.rig_positions`), the rotations put
+in the hemisphere of the input they followed
+(:func:`~emotive.models.gait.network.same_hemisphere`). The movement
 inputs and the emotion stay the data's: they are the controls given at animation time. The
 choice is drawn per frame for the whole batch, so that runs of teacher-forced frames go
 through the GRU in one call. As in scheduled sampling (Bengio et al. 2015), a fed-back
@@ -21,8 +23,9 @@ checkpoint with the lowest total validation loss is kept as ``best.pt``.
 Output folder: ``last.pt`` after every epoch, ``best.pt``, ``log.csv`` (one row per epoch:
 every loss term on train and val, learning rate, teacher-forcing ratio, seconds), all written
 atomically. A checkpoint is ``{"config", "train", "state", "optimizer", "epoch" (epochs done),
-"rng", "best_val", "history"}``. Ctrl-C (``KeyboardInterrupt``) writes ``last.pt`` with the
-weights reached and re-raises.
+"rng", "best_val", "history", "seed", "controls"}``, ``controls`` the rig, standing pose and
+walking paces the generator needs (:mod:`emotive.models.gait.controls`). Ctrl-C
+(``KeyboardInterrupt``) writes ``last.pt`` with the weights reached and re-raises.
 
 Determinism: on CPU, a seed gives the same run (``torch.manual_seed`` for the weights, a NumPy
 generator for batch order and teacher forcing), and resuming from a checkpoint written at the
@@ -36,6 +39,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+import pickle
 import time
 import tomllib
 from collections.abc import Callable
@@ -49,9 +53,15 @@ import torch
 from emotive.data.emotion import ALL_LABELS
 from emotive.errors import EmotiveError
 from emotive.models.gait.config import GaitConfig
+from emotive.models.gait.controls import gait_controls
 from emotive.models.gait.data import DEFAULT_DATASETS, GaitBatch, GaitData, load_gait_data
 from emotive.models.gait.losses import LOSS_TERMS, GaitLoss, GaitRig, rig_positions
-from emotive.models.gait.network import GaitInputs, GaitNetwork, GaitOutputs
+from emotive.models.gait.network import (
+    GaitInputs,
+    GaitNetwork,
+    GaitOutputs,
+    same_hemisphere,
+)
 
 #: Names of the logged loss values: the five terms then their weighted sum.
 LOG_TERMS: tuple[str, ...] = (*LOSS_TERMS, "total")
@@ -124,9 +134,10 @@ class GaitTrainSettings:
         return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
 
 
-def load_settings(path: str | Path) -> tuple[GaitConfig, GaitTrainSettings]:
-    """Read ``[model]`` (:class:`GaitConfig` fields) and ``[train]``
-    (:class:`GaitTrainSettings` fields) from a TOML file.
+def load_settings(path: str | Path, model_class: type = GaitConfig
+                  ) -> tuple[Any, GaitTrainSettings]:
+    """Read ``[model]`` (``model_class`` fields, by default :class:`GaitConfig`) and
+    ``[train]`` (:class:`GaitTrainSettings` fields) from a TOML file.
 
     Missing keys keep their defaults, except that ``[model] labels`` defaults to
     :data:`~emotive.data.emotion.ALL_LABELS` (every style a label of the emotion vector).
@@ -148,7 +159,7 @@ def load_settings(path: str | Path) -> tuple[GaitConfig, GaitTrainSettings]:
     if unknown:
         raise ConfigError(f"{path}: unknown section [{unknown[0]}]; known: [model], [train]")
     built: list[Any] = []
-    for section, cls in (("model", GaitConfig), ("train", GaitTrainSettings)):
+    for section, cls in (("model", model_class), ("train", GaitTrainSettings)):
         values = doc.get(section, {})
         if not isinstance(values, dict):
             raise ConfigError(f"{path}: {section} must be a [{section}] table")
@@ -159,12 +170,12 @@ def load_settings(path: str | Path) -> tuple[GaitConfig, GaitTrainSettings]:
                     f"{path}: unknown key [{section}] {key}; known: {', '.join(known)}"
                 )
         values = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items()}
-        if cls is GaitConfig:
+        if cls is model_class and "labels" in known:
             values.setdefault("labels", ALL_LABELS)
         try:
             built.append(cls(**values))
         except (ValueError, TypeError, EmotiveError) as exc:
-            message = str(exc).removeprefix("GaitConfig.")
+            message = str(exc).removeprefix(f"{cls.__name__}.")
             key = next((k for k in values if message.startswith(k)), None)
             where = f"[{section}] {key}" if key else f"[{section}]"
             raise ConfigError(f"{path}: {where}: {message}") from None
@@ -224,7 +235,7 @@ def rollout(network: GaitNetwork, batch: GaitBatch, mask: np.ndarray, rig: GaitR
     Returns:
         Predictions for frames ``1 .. T``: ``(B, T, J, 4)``, ``(B, T, J, 4)``, ``(B, T, 3)``.
     """
-    from emotive.features.affective import affective_features
+    from emotive.models.gait.affect import gait_affective
 
     inputs = batch.inputs()
     frames = inputs.rotations.shape[1]
@@ -243,17 +254,19 @@ def rollout(network: GaitNetwork, batch: GaitBatch, mask: np.ndarray, rig: GaitR
                 inputs.emotion, inputs.movement[:, t:end], inputs.root[:, t:end],
             )
             out, state = network(seg, state)
+            previous = inputs.rotations[:, end - 1]
             t = end
         else:
             last = parts[-1]
-            rotations = last.rotations[:, -1].detach()
+            rotations = same_hemisphere(last.rotations[:, -1].detach(), previous)
             affective = None
             if use_affective:
                 pose = rig_positions(rotations, batch.positions[:, t], rig)
-                affective = affective_features(pose, rig.roles)
+                affective = gait_affective(pose, rig.roles)
             frame = GaitInputs(rotations, affective, inputs.emotion, inputs.movement[:, t],
                                last.root[:, -1].detach())
             out, state = network.step(frame, state)
+            previous = rotations
             out = GaitOutputs(*(x.unsqueeze(1) for x in out))
             t += 1
         parts.append(out)
@@ -337,8 +350,12 @@ def load_checkpoint(path: str | Path) -> tuple[GaitNetwork, dict[str, Any]]:
         network.load_state_dict(ckpt["state"])
     except FileNotFoundError:
         raise ConfigError(f"{path}: checkpoint not found") from None
-    except (KeyError, ValueError, RuntimeError, TypeError) as exc:
-        raise ConfigError(f"{path}: not a gait checkpoint ({exc})") from None
+    except (KeyError, ValueError, RuntimeError, TypeError, EOFError,
+            pickle.UnpicklingError) as exc:
+        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise ConfigError(f"{path}: not a gait checkpoint ({reason})") from None
+    except IsADirectoryError:
+        raise ConfigError(f"{path}: is a folder; give the checkpoint file in it") from None
     network.eval()
     return network, ckpt
 
@@ -392,6 +409,7 @@ def train_gait(
     network.set_feature_statistics(**{k: tuple(torch.from_numpy(x) for x in v)
                                       for k, v in train.statistics().items()})
     rig = GaitRig.from_skeleton(train.skeleton)
+    controls = gait_controls(train).to_dict()
     loss_fn = GaitLoss(config, rig)
     optimizer = torch.optim.Adam(network.parameters(), lr=settings.learning_rate)
     history: list[dict[str, float]] = []
@@ -415,7 +433,7 @@ def train_gait(
             "config": config.to_dict(), "train": settings.to_dict(),
             "state": network.state_dict(), "optimizer": optimizer.state_dict(),
             "epoch": epoch, "rng": rng_state, "best_val": best_val, "history": history,
-            "seed": seed,
+            "seed": seed, "controls": controls,
         }
 
     console = Console(stderr=True)

@@ -1,0 +1,52 @@
+"""``emotive train quaternet``: train the QuaterNet baseline from a TOML config.
+
+Heavy modules are imported inside the command so that ``emotive --help`` stays fast.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+
+def train_quaternet_command(
+    config: Annotated[
+        Path, typer.Option("--config", help="TOML file with [model] and [train] sections.")
+    ] = Path("configs/quaternet.toml"),
+    out: Annotated[
+        Path, typer.Option("--out", help="Folder for last.pt, best.pt and log.csv.")
+    ] = Path("models/quaternet"),
+    resume: Annotated[
+        bool, typer.Option("--resume", help="Continue from the folder's last.pt.")
+    ] = False,
+    seed: Annotated[int, typer.Option(help="Seed of initialization, batches and curriculum.")] = 0,
+    epochs: Annotated[
+        int | None,
+        typer.Option(help="Epochs in all (default: the config's [train] epochs).", min=1,
+                     show_default=False),
+    ] = None,
+) -> None:
+    """Train the QuaterNet baseline on the gait data (Ctrl-C saves; --resume continues)."""
+    from dataclasses import replace
+
+    from rich.console import Console
+
+    from emotive.models.quaternet.training import load_quaternet_settings, train_quaternet
+
+    console = Console(stderr=True)
+    model_config, settings = load_quaternet_settings(config)
+    if epochs is not None:
+        settings = replace(settings, epochs=epochs)
+    try:
+        result = train_quaternet(model_config, settings, progress=True, out_dir=out,
+                                 resume=resume, seed=seed)
+    except KeyboardInterrupt:
+        raise typer.Exit(130) from None
+    last = result.history[-1] if result.history else {}
+    console.print(
+        f"wrote {result.last_path}, {result.best_path} and {out / 'log.csv'}: "
+        f"{len(result.history)} epochs, last train loss {last.get('train_total', float('nan')):.4g}"
+        f", best validation loss {result.best_val:.4g}"
+    )

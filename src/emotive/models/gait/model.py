@@ -1,0 +1,106 @@
+"""A trained gait model ready to animate: network, controls, and the committed default.
+
+:func:`load_gait_model` reads a checkpoint of :func:`~emotive.models.gait.training.train_gait`
+(or the exported default under ``emotive/assets/gait/``); :func:`export_checkpoint` strips a
+training checkpoint down to what animation needs (config, weights, controls, the training
+settings and log for the model card), so the committed file stays small.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import torch
+
+from emotive.models.gait.controls import GaitControls
+from emotive.models.gait.network import GaitNetwork
+
+#: The committed default checkpoint, inside the package.
+DEFAULT_CHECKPOINT = "emotive-gait.pt"
+#: Keys an exported checkpoint keeps.
+EXPORTED_KEYS: tuple[str, ...] = (
+    "config", "state", "controls", "train", "epoch", "best_val", "history", "seed",
+)
+
+
+@dataclass(frozen=True, eq=False)
+class GaitModel:
+    """A gait network with what it needs to animate without data.
+
+    Attributes:
+        network: the network, in eval mode.
+        controls: rig, standing pose and walking paces.
+        source: the checkpoint file it came from.
+    """
+
+    network: GaitNetwork
+    controls: GaitControls
+    source: Path
+
+    @property
+    def labels(self) -> tuple[str, ...]:
+        """The ``C`` labels of the emotion vector."""
+        return self.network.config.labels
+
+    @property
+    def fps(self) -> float:
+        """Frame rate the network runs at."""
+        return self.network.config.fps
+
+
+def default_checkpoint_path() -> Path:
+    """The committed default checkpoint (``emotive/assets/gait/emotive-gait.pt``)."""
+    return Path(str(resources.files("emotive") / "assets" / "gait" / DEFAULT_CHECKPOINT))
+
+
+def load_gait_model(path: str | Path | None = None) -> GaitModel:
+    """A gait model from a checkpoint, by default the committed one.
+
+    Raises:
+        ConfigError: the file is missing, corrupt, or not a gait checkpoint with controls
+            (checkpoints written before the controls existed must be retrained).
+    """
+    from emotive.models.gait.training import ConfigError, load_checkpoint
+
+    path = default_checkpoint_path() if path is None else Path(path)
+    network, ckpt = load_checkpoint(path)
+    if "controls" not in ckpt:
+        raise ConfigError(f"{path}: gait checkpoint without animation controls; retrain it with "
+                          "`emotive train gait`")
+    try:
+        controls = GaitControls.from_dict(ckpt["controls"])
+    except (KeyError, ValueError, TypeError) as exc:
+        raise ConfigError(f"{path}: bad animation controls in the checkpoint ({exc})") from None
+    if controls.skeleton.num_joints != network.config.num_joints:
+        raise ConfigError(f"{path}: the rig has {controls.skeleton.num_joints} joints, the "
+                          f"network {network.config.num_joints}")
+    return GaitModel(network, controls, path)
+
+
+def export_checkpoint(source: str | Path, out: str | Path) -> Path:
+    """Write the animation part of a gait training checkpoint (:data:`EXPORTED_KEYS`),
+    float32.
+
+    Raises:
+        ConfigError: as :func:`load_gait_model`.
+    """
+    load_gait_model(source)
+    return slim_checkpoint(source, out, EXPORTED_KEYS)
+
+
+def slim_checkpoint(source: str | Path, out: str | Path, keys: tuple[str, ...]) -> Path:
+    """Copy the ``keys`` of a checkpoint (weights as float32) to ``out``, atomically; for
+    committing checkpoints without optimizer state. The caller validates ``source``."""
+    from emotive.io.atomic import atomic_output
+
+    ckpt = torch.load(source, map_location="cpu", weights_only=True)
+    slim: dict[str, Any] = {k: ckpt[k] for k in keys if k in ckpt}
+    slim["state"] = {k: v.float() if v.is_floating_point() else v
+                     for k, v in slim["state"].items()}
+    out = Path(out)
+    with atomic_output(out) as tmp:
+        torch.save(slim, tmp)
+    return out
