@@ -47,13 +47,14 @@ def table1_rows(quick: bool, checkpoint: Path | None = None) -> dict:
     from emotive.eval.evaluate import MODELS, gait_subject
     from emotive.eval.table1 import ZeroVelocity, table1
 
-    names = [*MODELS, "zero-velocity"]
-    predictors = [MODELS[name]().predictor for name in MODELS] + [ZeroVelocity()]
+    subjects = {name: MODELS[name]() for name in MODELS}
     if checkpoint is not None:
-        names.append(checkpoint.stem)
-        predictors.append(gait_subject(checkpoint).predictor)
-    for name, p in zip(names, predictors, strict=True):
-        p.name = {"emotive-gait": "Ours"}.get(name, name)
+        subjects[f"{checkpoint.parent.name}/{checkpoint.name}"] = gait_subject(checkpoint)
+    predictors = []
+    for name, subject in subjects.items():
+        subject.predictor.name = {"emotive-gait": "Ours"}.get(name, name)
+        predictors.append(subject.predictor)
+    predictors.append(ZeroVelocity())
     d1 = split_clips(load_clips("bandai-namco-1", locomotion=True))["test"]
     sets = {"dataset-1 test": d1}
     if not quick:
