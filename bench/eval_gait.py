@@ -195,11 +195,11 @@ def generated_suites(seeds: int, checkpoint: Path | None = None) -> dict:
         for e in EMOTIONS for s in range(seeds)
     ] + [r for r in standard_requests(labels, seconds=20.0) if "-to-" in r.name]
     out = {}
+    subject = gait_subject(checkpoint)
     for suite in ("emotion", "transition", "quality", "path"):
-        results, _ = run_suites(gait_subject(checkpoint), suite, classifier, requests=requests)
+        results, _ = run_suites(subject, suite, classifier, requests=requests)
         out[suite] = results[suite]
-    raw = Subject("raw", generator=NetworkGenerator(gait_subject(checkpoint).generator.model,
-                                                    clean_feet=False))
+    raw = Subject("raw", generator=NetworkGenerator(subject.generator.model, clean_feet=False))
     out["quality_raw"] = run_suites(raw, "quality", classifier, requests=requests)[0]["quality"]
     e = out["emotion"]
     print(f"\nperceived emotion: window accuracy {e['window_accuracy']:.3f} on generated walks, "

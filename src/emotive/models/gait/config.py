@@ -15,11 +15,10 @@ for all of the performances reported").
 
 from __future__ import annotations
 
-import json
-from dataclasses import asdict, dataclass, fields
-from typing import Any
+from dataclasses import dataclass
 
 from emotive.data.emotion import DEFAULT_LABELS, check_labels
+from emotive.models.config_io import DictConfig
 
 #: Per-frame inputs of the network besides rotations and emotion, in column order.
 AFFECTIVE_SIZE = 18
@@ -41,7 +40,7 @@ _WEIGHTS = (
 
 
 @dataclass(frozen=True)
-class GaitConfig:
+class GaitConfig(DictConfig):
     """Sizes, labels, loss weights and ablation switches of :class:`GaitNetwork`.
 
     Attributes:
@@ -124,30 +123,3 @@ class GaitConfig:
     def num_labels(self) -> int:
         """``C``, the length of the emotion vector."""
         return len(self.labels)
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-safe dict of every field (tuples as lists)."""
-        return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
-
-    @classmethod
-    def from_dict(cls, values: dict[str, Any]) -> GaitConfig:
-        """The config saved by :meth:`to_dict`.
-
-        Raises:
-            ValueError: a key that is not a field (a checkpoint of another model or version).
-        """
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(values) - known)
-        if unknown:
-            raise ValueError(f"unknown GaitConfig fields {unknown}; known: {sorted(known)}")
-        values = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items()}
-        return cls(**values)
-
-    def to_json(self) -> str:
-        """The config as a JSON text."""
-        return json.dumps(self.to_dict(), sort_keys=True)
-
-    @classmethod
-    def from_json(cls, text: str) -> GaitConfig:
-        """The config from :meth:`to_json` text."""
-        return cls.from_dict(json.loads(text))

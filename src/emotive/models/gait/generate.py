@@ -51,7 +51,7 @@ which sets which foot leads and the timing of steps.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, NamedTuple
 
@@ -202,6 +202,7 @@ class GaitGenerator:
         self._next_id = 0
         self._agents: dict[int, _Agent] = {}
         self._order: list[int] = []
+        self._groups: list[tuple[GroundPath, np.ndarray]] | None = None
         j = c.skeleton.num_joints
         self._state = net.initial_state(0, dtype=dtype)
         self._rot = torch.zeros(0, j, 4, dtype=dtype)
@@ -262,6 +263,7 @@ class GaitGenerator:
         self._next_id += 1
         self._agents[agent] = _Agent(path, schedule, 0.0, len(schedule.times) == 1)
         self._order.append(agent)
+        self._groups = None
         self._state = torch.cat((self._state, state), 1)
         self._rot = torch.cat((self._rot, rot[None]))
         self._root = torch.cat((self._root, root[None]))
@@ -294,6 +296,7 @@ class GaitGenerator:
             setattr(self, name, getattr(self, name)[keep])
         del self._order[k]
         del self._agents[agent]
+        self._groups = None
 
     def set_emotion(self, agent: int, emotion: EmotionLike) -> None:
         """Give an agent a new emotion or schedule; a schedule's time 0 is now.
@@ -323,6 +326,7 @@ class GaitGenerator:
         self._arc[k] = float(arc[0])
         self._offset[k] = here - path.position(self._arc[k])
         info.path = path
+        self._groups = None
 
     def _index(self, agent: int) -> int:
         try:
@@ -388,13 +392,16 @@ class GaitGenerator:
                 factor[members] = np.maximum(1.0 - slowing * k, MIN_TURN_FACTOR)
         return factor
 
-    def _by_path(self) -> Iterable[tuple[GroundPath, np.ndarray]]:
-        groups: dict[int, tuple[GroundPath, list[int]]] = {}
-        for k, agent in enumerate(self._order):
-            path = self._agents[agent].path
-            groups.setdefault(id(path), (path, []))[1].append(k)
-        for path, members in groups.values():
-            yield path, np.asarray(members)
+    def _by_path(self) -> list[tuple[GroundPath, np.ndarray]]:
+        """The agents grouped by the path they follow, ``(path, batch indices)``; kept until an
+        agent is added or removed or changes path, so a step queries each path in one call."""
+        if self._groups is None:
+            groups: dict[int, tuple[GroundPath, list[int]]] = {}
+            for k, agent in enumerate(self._order):
+                path = self._agents[agent].path
+                groups.setdefault(id(path), (path, []))[1].append(k)
+            self._groups = [(path, np.asarray(members)) for path, members in groups.values()]
+        return self._groups
 
     @torch.no_grad()
     def step(self) -> GaitFrame:

@@ -109,7 +109,7 @@ class QuaterNetPredictor:
     def predict(self, primer: Motion, frames: int, emotion: np.ndarray,
                 labels: tuple[str, ...]) -> Motion:
         """The ``frames`` frames after ``primer``; ``emotion`` is not used."""
-        from emotive.core.ops import heading
+        from emotive.core.ops import heading, resample
         from emotive.transforms.np_rotations import quaternion_multiply, yaw_quaternion
 
         c = self.controls
@@ -141,11 +141,7 @@ class QuaterNetPredictor:
             j = int(c.skeleton.parents[j])
         # World placement: the primer's last heading and height, moving at its speed.
         mover = c.mover
-        motion = primer if abs(primer.fps - c.fps) < 1e-9 * c.fps else None
-        if motion is None:
-            from emotive.core.ops import resample
-
-            motion = resample(primer, c.fps)
+        motion = primer if abs(primer.fps - c.fps) < 1e-9 * c.fps else resample(primer, c.fps)
         yaw = float(heading(motion)[-1])
         last = motion.positions[-1, mover]
         q[:, mover] = quaternion_multiply(yaw_quaternion(np.full(len(q), yaw)), q[:, mover])

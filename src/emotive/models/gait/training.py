@@ -318,14 +318,16 @@ def _set_rng_state(rng: np.random.Generator, state: dict[str, Any]) -> None:
     torch.set_rng_state(state["torch"])
 
 
-def _write_csv(path: Path, history: list[dict[str, float]]) -> None:
+def _write_csv(path: Path, history: list[dict[str, float]],
+               columns: tuple[str, ...] = CSV_COLUMNS) -> None:
+    """The training log, one row per epoch (a missing value left empty), atomically."""
     from emotive.io.atomic import atomic_output
 
     text = io.StringIO()
-    writer = csv.DictWriter(text, fieldnames=CSV_COLUMNS, lineterminator="\n")
+    writer = csv.DictWriter(text, fieldnames=columns, lineterminator="\n")
     writer.writeheader()
     for row in history:
-        writer.writerow({k: "" if row.get(k) is None else row[k] for k in CSV_COLUMNS})
+        writer.writerow({k: "" if row.get(k) is None else row[k] for k in columns})
     with atomic_output(path) as tmp:
         tmp.write_text(text.getvalue())
 

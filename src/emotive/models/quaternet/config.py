@@ -10,11 +10,10 @@ comparison is between designs, not sizes, and both train in comparable time on t
 
 from __future__ import annotations
 
-import json
-from dataclasses import asdict, dataclass, fields
-from typing import Any
+from dataclasses import dataclass
 
 from emotive.data.emotion import ALL_LABELS, check_labels
+from emotive.models.config_io import DictConfig
 
 _POSITIVE_INTS = ("num_joints", "control_hidden", "gru_hidden", "gru_layers")
 _WEIGHTS = ("pose_weight", "versor_weight")
@@ -22,7 +21,7 @@ _SWITCHES = ("use_movement", "residual")
 
 
 @dataclass(frozen=True)
-class QuaterNetConfig:
+class QuaterNetConfig(DictConfig):
     """Sizes, switches and loss weights of :class:`~emotive.models.quaternet.QuaterNetwork`.
 
     Attributes:
@@ -79,29 +78,3 @@ class QuaterNetConfig:
         for name in _SWITCHES:
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"QuaterNetConfig.{name} must be true or false")
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-safe dict of every field (tuples as lists)."""
-        return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
-
-    @classmethod
-    def from_dict(cls, values: dict[str, Any]) -> QuaterNetConfig:
-        """The config saved by :meth:`to_dict`.
-
-        Raises:
-            ValueError: a key that is not a field (a checkpoint of another model or version).
-        """
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(values) - known)
-        if unknown:
-            raise ValueError(f"unknown QuaterNetConfig fields {unknown}; known: {sorted(known)}")
-        return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in values.items()})
-
-    def to_json(self) -> str:
-        """The config as a JSON text."""
-        return json.dumps(self.to_dict(), sort_keys=True)
-
-    @classmethod
-    def from_json(cls, text: str) -> QuaterNetConfig:
-        """The config from :meth:`to_json` text."""
-        return cls.from_dict(json.loads(text))

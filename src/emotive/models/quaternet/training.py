@@ -28,8 +28,6 @@ an epoch gives the results of not stopping.
 
 from __future__ import annotations
 
-import csv
-import io
 import math
 import pickle
 import time
@@ -53,6 +51,7 @@ from emotive.models.gait.training import (
     _rng_state,
     _save,
     _set_rng_state,
+    _write_csv,
     load_settings,
     teacher_forcing_mask,
 )
@@ -153,18 +152,6 @@ def evaluate_quaternet(network: QuaterNetwork, data: GaitData, rig: GaitRig, bat
             for k, v in terms.items():
                 sums[k] += v * len(idx)
     return {k: v / max(len(data), 1) for k, v in sums.items()}
-
-
-def _write_log(path: Path, history: list[dict[str, float]]) -> None:
-    from emotive.io.atomic import atomic_output
-
-    text = io.StringIO()
-    writer = csv.DictWriter(text, fieldnames=CSV_COLUMNS, lineterminator="\n")
-    writer.writeheader()
-    for row in history:
-        writer.writerow({k: "" if row.get(k) is None else row[k] for k in CSV_COLUMNS})
-    with atomic_output(path) as tmp:
-        tmp.write_text(text.getvalue())
 
 
 def load_quaternet_checkpoint(path: str | Path) -> tuple[QuaterNetwork, dict[str, Any]]:
@@ -317,7 +304,7 @@ def train_quaternet(
                     _save(best_path, done)
                 _save(last_path, done)
                 dirty = False
-                _write_log(csv_path, history)
+                _write_csv(csv_path, history, CSV_COLUMNS)
                 if progress:
                     console.print(
                         f"epoch {epoch + 1}/{settings.epochs}: train {train_terms['total']:.4g}"
@@ -330,7 +317,7 @@ def train_quaternet(
             # The weights reached are kept; the epoch reruns from its start, same batch order.
             del history[epoch:]
             _save(last_path, checkpoint(epoch, epoch_rng))
-            _write_log(csv_path, history)
+            _write_csv(csv_path, history, CSV_COLUMNS)
         console.print(f"interrupted: wrote {last_path}; continue with --resume")
         raise
     network.eval()
