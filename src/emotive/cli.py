@@ -16,6 +16,7 @@ from emotive.commands import inspect as _inspect
 from emotive.commands.classify import classify, evaluate, train_app
 from emotive.commands.data import app as data_app
 from emotive.commands.generate import generate
+from emotive.commands.reconstruct import reconstruct
 from emotive.commands.render import preview
 from emotive.errors import EmotiveError
 
@@ -50,6 +51,7 @@ app.command("info")(_inspect.info)
 app.command("features")(_inspect.features)
 app.command("preview")(preview)
 app.command("generate")(generate)
+app.command("reconstruct")(reconstruct)
 app.command("classify")(classify)
 app.command("evaluate")(evaluate)
 app.add_typer(train_app, name="train")

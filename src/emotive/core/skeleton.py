@@ -116,3 +116,22 @@ class Skeleton:
             and np.array_equal(self.parents, other.parents)
             and np.allclose(self.offsets, other.offsets, atol=atol)
         )
+
+
+def skeleton_to_dict(skeleton: Skeleton) -> dict:
+    """Plain lists of a rig (for ``weights_only`` checkpoints); see :func:`skeleton_from_dict`."""
+    return {
+        "names": list(skeleton.names), "parents": skeleton.parents.tolist(),
+        "offsets": skeleton.offsets.tolist(), "channels": [list(c) for c in skeleton.channels],
+        "end_site_parents": skeleton.end_site_parents.tolist(),
+        "end_site_offsets": skeleton.end_site_offsets.tolist(),
+    }
+
+
+def skeleton_from_dict(values: dict) -> Skeleton:
+    """The rig saved by :func:`skeleton_to_dict` (``KeyError``/``RigError`` on bad input)."""
+    return Skeleton(
+        tuple(values["names"]), np.array(values["parents"]), np.array(values["offsets"]),
+        tuple(tuple(c) for c in values["channels"]), np.array(values["end_site_parents"]),
+        np.array(values["end_site_offsets"]).reshape(-1, 3),
+    )

@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from emotive.core.skeleton import Skeleton
+from emotive.core.skeleton import Skeleton, skeleton_from_dict, skeleton_to_dict
 from emotive.errors import DataError
 
 #: Root speed (metres per second) under which a frame counts as standing.
@@ -75,7 +75,6 @@ class GaitControls:
 
     def to_dict(self) -> dict[str, Any]:
         """Plain lists and numbers (for a ``weights_only`` checkpoint)."""
-        sk = self.skeleton
         return {
             "labels": list(self.labels),
             "step_frequency": self.step_frequency.tolist(),
@@ -86,12 +85,7 @@ class GaitControls:
             "turn_slowing": float(self.turn_slowing),
             "mover": int(self.mover),
             "fps": float(self.fps),
-            "skeleton": {
-                "names": list(sk.names), "parents": sk.parents.tolist(),
-                "offsets": sk.offsets.tolist(), "channels": [list(c) for c in sk.channels],
-                "end_site_parents": sk.end_site_parents.tolist(),
-                "end_site_offsets": sk.end_site_offsets.tolist(),
-            },
+            "skeleton": skeleton_to_dict(self.skeleton),
         }
 
     @classmethod
@@ -101,12 +95,7 @@ class GaitControls:
         Raises:
             KeyError, ValueError: a missing key or a bad value.
         """
-        sk = values["skeleton"]
-        skeleton = Skeleton(
-            tuple(sk["names"]), np.array(sk["parents"]), np.array(sk["offsets"]),
-            tuple(tuple(c) for c in sk["channels"]), np.array(sk["end_site_parents"]),
-            np.array(sk["end_site_offsets"]).reshape(-1, 3),
-        )
+        skeleton = skeleton_from_dict(values["skeleton"])
         labels = tuple(values["labels"])
         out = cls(
             labels, np.array(values["step_frequency"], dtype=np.float64),

@@ -134,13 +134,16 @@ class GaitTrainSettings:
         return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
 
 
-def load_settings(path: str | Path, model_class: type = GaitConfig
-                  ) -> tuple[Any, GaitTrainSettings]:
+def load_settings(path: str | Path, model_class: type = GaitConfig,
+                  train_class: type = GaitTrainSettings,
+                  model_defaults: dict[str, Any] | None = None) -> tuple[Any, Any]:
     """Read ``[model]`` (``model_class`` fields, by default :class:`GaitConfig`) and
-    ``[train]`` (:class:`GaitTrainSettings` fields) from a TOML file.
+    ``[train]`` (``train_class`` fields, by default :class:`GaitTrainSettings`) from a TOML
+    file.
 
     Missing keys keep their defaults, except that ``[model] labels`` defaults to
-    :data:`~emotive.data.emotion.ALL_LABELS` (every style a label of the emotion vector).
+    :data:`~emotive.data.emotion.ALL_LABELS` (every style a label of the emotion vector) and
+    ``model_defaults`` fills keys the file cannot give (e.g. sizes set by the data).
 
     Raises:
         ConfigError: the file is missing or not TOML, or has an unknown section, an unknown
@@ -159,7 +162,7 @@ def load_settings(path: str | Path, model_class: type = GaitConfig
     if unknown:
         raise ConfigError(f"{path}: unknown section [{unknown[0]}]; known: [model], [train]")
     built: list[Any] = []
-    for section, cls in (("model", model_class), ("train", GaitTrainSettings)):
+    for section, cls in (("model", model_class), ("train", train_class)):
         values = doc.get(section, {})
         if not isinstance(values, dict):
             raise ConfigError(f"{path}: {section} must be a [{section}] table")
@@ -172,6 +175,11 @@ def load_settings(path: str | Path, model_class: type = GaitConfig
         values = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items()}
         if cls is model_class and "labels" in known:
             values.setdefault("labels", ALL_LABELS)
+        if cls is model_class:
+            for key in model_defaults or {}:
+                if key in values:
+                    raise ConfigError(f"{path}: [model] {key} is set from the data; remove it")
+            values.update(model_defaults or {})
         try:
             built.append(cls(**values))
         except (ValueError, TypeError, EmotiveError) as exc:
@@ -332,6 +340,19 @@ def _write_csv(path: Path, history: list[dict[str, float]],
         tmp.write_text(text.getvalue())
 
 
+def training_paths(out_dir: Path, resume: bool) -> tuple[Path, Path, Path]:
+    """``last.pt``, ``best.pt`` and ``log.csv`` in ``out_dir`` (created).
+
+    Raises:
+        ConfigError: ``resume`` without a ``last.pt`` to resume from.
+    """
+    out_dir.mkdir(parents=True, exist_ok=True)
+    last_path = out_dir / "last.pt"
+    if resume and not last_path.exists():
+        raise ConfigError(f"{last_path}: no checkpoint to resume from")
+    return last_path, out_dir / "best.pt", out_dir / "log.csv"
+
+
 def _save(path: Path, checkpoint: dict[str, Any]) -> None:
     from emotive.io.atomic import atomic_output
 
@@ -397,10 +418,7 @@ def train_gait(
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    last_path, best_path, csv_path = out_dir / "last.pt", out_dir / "best.pt", out_dir / "log.csv"
-    if resume and not last_path.exists():
-        raise ConfigError(f"{last_path}: no checkpoint to resume from")
+    last_path, best_path, csv_path = training_paths(out_dir, resume)
     if data is None:
         data = load_gait_data(config, settings.datasets, settings.window, settings.stride,
                               settings.split_seed, settings.max_clips, progress)

@@ -54,6 +54,7 @@ from emotive.models.gait.training import (
     _write_csv,
     load_settings,
     teacher_forcing_mask,
+    training_paths,
 )
 from emotive.models.quaternet.config import QuaterNetConfig
 from emotive.models.quaternet.network import QuaterNetOutputs, QuaterNetwork
@@ -211,10 +212,7 @@ def train_quaternet(
     from rich.progress import Progress
 
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    last_path, best_path, csv_path = out_dir / "last.pt", out_dir / "best.pt", out_dir / "log.csv"
-    if resume and not last_path.exists():
-        raise ConfigError(f"{last_path}: no checkpoint to resume from")
+    last_path, best_path, csv_path = training_paths(out_dir, resume)
     if data is None:
         data_config = GaitConfig(labels=config.labels, num_joints=config.num_joints,
                                  fps=config.fps)

@@ -1,0 +1,108 @@
+"""``emotive reconstruct``: rebuild a BVH clip from its own end-effector trajectories.
+
+The paper's motion reconstruction task (issue 7; Carreno-Medrano et al., sections 5.1 and 6.1):
+the pelvis path and the targets of the five chains (end effectors and elbows, in chain frames)
+are taken from the clip, and the whole body is solved back from them alone by
+:func:`emotive.ik.reconstruct`. The output is on the input's rig.
+
+Heavy modules are imported inside the command so that ``emotive --help`` stays fast.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated
+
+import typer
+
+if TYPE_CHECKING:
+    from emotive.ik import IKResult
+
+
+def summary(result: IKResult, fps: float) -> str:
+    """One line: frames, clip and solve seconds, per-chain target residual and clamped targets.
+
+    Args:
+        result: the reconstruction.
+        fps: the clip's frame rate.
+    """
+    import numpy as np
+
+    n = result.motion.num_frames
+    residual = ", ".join(
+        f"{name} {1000 * r.mean():.2f}/{1000 * r.max():.2f}" if len(r) else f"{name} -"
+        for name, r in result.residuals.items()
+    )
+    clamped = [
+        f"{name} {len(u)} ({', '.join(sorted(set(u.targets)))}; up to "
+        f"{1000 * float(np.max(u.distances)):.1f} mm beyond reach)"
+        for name, u in result.unreachable.items()
+        if len(u)
+    ]
+    return (
+        f"{n} frames ({n / fps:.2f} s) rebuilt in {result.seconds:.2f} s "
+        f"({result.ms_per_frame:.1f} ms/frame); target residual mean/max mm: {residual}; "
+        f"unreachable targets clamped: {'; '.join(clamped) if clamped else 'none'}"
+    )
+
+
+def reconstruct(
+    input: Annotated[Path, typer.Argument(help="BVH clip to rebuild.", show_default=False)],
+    out: Annotated[
+        Path,
+        typer.Option("--out", "-o", help="Output .bvh, on the input's rig.", show_default=False),
+    ],
+    role_map: Annotated[
+        str | None,
+        typer.Option(
+            "--role-map",
+            "--roles",
+            help='Role map: "bandai", "cmu" or a JSON file {"role": "JointName", ...}; '
+            "default: try the built-in maps.",
+            show_default=False,
+        ),
+    ] = None,
+    preview: Annotated[
+        Path | None,
+        typer.Option(
+            "--preview",
+            help="Also write a stick-figure video of the rebuilt clip: .mp4 or .gif.",
+            show_default=False,
+        ),
+    ] = None,
+) -> None:
+    """Rebuild a clip from its own pelvis, end-effector and elbow trajectories by IK."""
+    from rich.console import Console
+
+    from emotive.errors import BVHError, RigError
+    from emotive.ik import IKError
+    from emotive.ik import reconstruct as ik_reconstruct
+    from emotive.io.bvh import read_bvh, write_bvh
+    from emotive.models.gait.outputs import check_output
+
+    check_output(out, (".bvh",), "--out")
+    if preview is not None:
+        check_output(preview, (".mp4", ".gif"), "--preview")
+    motion = read_bvh(input)
+    if motion.num_frames == 0:
+        raise BVHError(
+            input,
+            None,
+            "holds no frames: there is nothing to rebuild; pass a clip with motion data",
+        )
+    console = Console(stderr=True)
+    try:
+        with console.status(f"rebuilding {input.name}: {motion.num_frames} frames ..."):
+            result = ik_reconstruct(motion, role_map=role_map)
+    except (RigError, IKError) as exc:
+        # The IK names chains and roles; the user needs to know which file they belong to.
+        raise type(exc)(f"{input}: {exc}") from None
+    # The rebuilt clip keeps the input's metadata, so it is written in the input's length unit.
+    rebuilt = result.motion
+    write_bvh(rebuilt, out)
+    typer.echo(f"wrote {out}: {summary(result, motion.fps)}")
+    if preview is not None:
+        from emotive.render.preview import render_preview
+
+        render_preview(rebuilt, preview, title=f"{input.name} rebuilt", progress=True)
+        console.print(f"wrote {preview}")

@@ -1,0 +1,247 @@
+"""Generation with a trained FCRBM: valence/arousal per frame in, motion out (issue 6).
+
+Context: valence and arousal on the paper's 1-3 scale (1 low, 2 neutral, 3 high), constant
+(:func:`constant_context`) or a schedule of keyframes (:func:`schedule_context`), each keyframe
+giving ``valence`` and ``arousal`` or an ``emotion`` (converted through the project's
+circumplex, :data:`emotive.data.emotion.VALENCE_AROUSAL`: ``2 + (v, a)``). Values beyond 1-3
+exaggerate (extrapolation) and are accepted within :data:`CONTEXT_RANGE`; the context must stay
+positive because every interaction of the model is multiplicative in it.
+
+Start: the last ``N`` frames of a primer clip on the training rig, or by default ``N`` copies
+of the training data's mean frame (a statistic, not a recording); the first
+:data:`WARMUP_SECONDS` generated from the mean frame are dropped, so the output starts in
+motion.
+
+Legend: ``T`` frames, ``D`` visible units, ``N`` order.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from emotive.core.motion import Motion
+from emotive.errors import EmotiveError
+from emotive.models.fcrbm.data import FrameCodec, frame_vectors
+from emotive.models.fcrbm.model import FCRBM
+
+#: Accepted valence/arousal values (the paper's scale is 1-3; beyond it exaggerates).
+CONTEXT_RANGE = (0.25, 5.0)
+#: Seconds generated and dropped when starting from the mean frame.
+WARMUP_SECONDS = 2.0
+#: A standardized frame value beyond this means the model's dynamics diverged.
+DIVERGED = 25.0
+
+
+class FCRBMInputError(EmotiveError):
+    """Valence/arousal, schedule, primer or length the FCRBM cannot use."""
+
+
+class FCRBMDivergedError(EmotiveError):
+    """The generated frames left the data's range: the model is unstable for this context."""
+
+
+def default_checkpoint_path() -> Path:
+    """The committed FCRBM checkpoint."""
+    from importlib.resources import files
+
+    return Path(str(files("emotive.assets") / "fcrbm" / "fcrbm.pt"))
+
+
+@dataclass(frozen=True, eq=False)
+class FCRBMModel:
+    """A trained FCRBM with the codec of its frames."""
+
+    network: FCRBM
+    codec: FrameCodec
+
+    @property
+    def fps(self) -> float:
+        """Frame rate of the generated motion."""
+        return self.codec.fps
+
+
+def load_fcrbm_model(path: str | Path | None = None) -> FCRBMModel:
+    """The FCRBM of a checkpoint, by default the committed one.
+
+    Raises:
+        ConfigError: missing, corrupt, or not an FCRBM checkpoint.
+    """
+    from emotive.models.fcrbm.training import load_fcrbm_checkpoint
+
+    network, codec, _ = load_fcrbm_checkpoint(path or default_checkpoint_path())
+    return FCRBMModel(network, codec)
+
+
+def check_context(values: np.ndarray, where: str) -> np.ndarray:
+    """``(..., 2)`` valence/arousal as float64, or :class:`FCRBMInputError` naming ``where``."""
+    z = np.asarray(values, dtype=np.float64)
+    low, high = CONTEXT_RANGE
+    if not np.isfinite(z).all() or (z < low).any() or (z > high).any():
+        bad = z[~(np.isfinite(z) & (z >= low) & (z <= high))].ravel()[0]
+        raise FCRBMInputError(
+            f"{where}: valence and arousal must be numbers in [{low:g}, {high:g}] (the paper's "
+            f"scale is 1 low, 2 neutral, 3 high), got {bad}"
+        )
+    return z
+
+
+def emotion_context(emotion: str) -> np.ndarray:
+    """``(2,)`` valence/arousal (1-3 scale) of an emotion such as ``"sad"`` or
+    ``"happy=0.5,angry=0.5"``.
+
+    Raises:
+        EmotionError: unknown names or bad weights.
+    """
+    from emotive.data.emotion import ALL_LABELS, Emotion
+
+    return 2.0 + Emotion.parse(emotion, ALL_LABELS).valence_arousal()
+
+
+def constant_context(valence: float, arousal: float, frames: int) -> np.ndarray:
+    """``(frames, 2)`` constant context.
+
+    Raises:
+        FCRBMInputError: a value outside :data:`CONTEXT_RANGE` or NaN.
+    """
+    z = check_context(np.array([valence, arousal]), "--valence/--arousal")
+    return np.repeat(z[None], frames, axis=0)
+
+
+def schedule_context(path: str | Path, frames: int, fps: float) -> np.ndarray:
+    """``(frames, 2)`` context from a JSON schedule, interpolated linearly between keyframes
+    and held before the first and after the last.
+
+    The file holds ``[{"t": 0, "valence": 3, "arousal": 1}, {"t": 10, "emotion": "sad"}]``
+    (seconds; ``emotion`` as for :func:`emotion_context`).
+
+    Raises:
+        FCRBMInputError: unreadable file, bad keyframes or values.
+    """
+    path = Path(path)
+    try:
+        keys = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise FCRBMInputError(f"{path}: cannot read the schedule ({exc})") from None
+    if not isinstance(keys, list) or not keys:
+        raise FCRBMInputError(f"{path}: a schedule is a non-empty JSON list of keyframes such "
+                              'as {"t": 0, "valence": 3, "arousal": 1}')
+    times, points = [], []
+    for k, key in enumerate(keys):
+        where = f"{path}: keyframe {k}"
+        if not isinstance(key, dict) or not isinstance(key.get("t"), int | float) or not (
+                math.isfinite(key["t"]) and key["t"] >= 0):
+            raise FCRBMInputError(f"{where}: needs a time \"t\" >= 0 in seconds")
+        if "emotion" in key:
+            point = emotion_context(str(key["emotion"]))
+        elif "valence" in key and "arousal" in key:
+            try:
+                point = np.array([float(key["valence"]), float(key["arousal"])])
+            except (TypeError, ValueError):
+                raise FCRBMInputError(f"{where}: valence and arousal must be numbers") from None
+        else:
+            raise FCRBMInputError(f"{where}: give \"valence\" and \"arousal\", or \"emotion\"")
+        times.append(float(key["t"]))
+        points.append(check_context(point, where))
+    if any(b < a for a, b in itertools.pairwise(times)):
+        raise FCRBMInputError(f"{path}: keyframe times must not decrease")
+    t = np.arange(frames) / fps
+    pts = np.array(points)
+    return np.stack([np.interp(t, times, pts[:, d]) for d in range(2)], 1)
+
+
+def seed_frames(model: FCRBMModel, primer: Motion | None = None) -> np.ndarray:
+    """``(N, D)`` starting frames: the primer's last ``N`` or the mean frame repeated.
+
+    Raises:
+        FCRBMInputError: the primer is on another rig or shorter than ``N + 1`` frames.
+    """
+    n = model.network.config.order
+    if primer is None:
+        return np.zeros((n, model.codec.dim), dtype=np.float32)
+    name = primer.metadata.get("name", "the primer")
+    if primer.skeleton.names != model.codec.skeleton.names:
+        raise FCRBMInputError(f"{name}: the primer must be on the model's rig "
+                              f"({len(model.codec.skeleton.names)} joints from "
+                              f"{model.codec.skeleton.names[0]}); retarget it first")
+    if primer.num_frames < n + 1:
+        raise FCRBMInputError(f"{name}: the primer has {primer.num_frames} frames; the model "
+                              f"needs at least {n + 1} initial frames")
+    if abs(primer.fps - model.fps) > 1e-6:
+        from emotive.core.ops import resample
+
+        primer = resample(primer, model.fps)
+    return model.codec.encode(frame_vectors(primer))[-n:]
+
+
+def generate_motion(
+    model: FCRBMModel,
+    context: np.ndarray,
+    seed: int = 0,
+    primer: Motion | None = None,
+    gibbs: int | None = None,
+    name: str = "fcrbm",
+) -> tuple[Motion, np.ndarray]:
+    """Generate ``T`` frames following a per-frame context.
+
+    Args:
+        model: the trained model.
+        context: ``(T, 2)`` valence/arousal per frame (1-3 scale), or ``(T, B, 2)`` for ``B``
+            agents generated in one batch.
+        seed: seed of the hidden samples.
+        primer: starting clip (see :func:`seed_frames`).
+        gibbs: Gibbs iterations per frame (default: the config's).
+        name: name of the motion.
+
+    Returns:
+        The motion (starting at the origin, facing +Z; the first agent's when batched) and the
+        ``(T, D)`` (or ``(B, T, D)``) standardized frames.
+
+    Raises:
+        FCRBMInputError: bad context, primer or gibbs.
+        FCRBMDivergedError: the frames ran out of the data's range.
+    """
+    z = check_context(context, "context")
+    batched = z.ndim == 3
+    z = z if batched else z[:, None]
+    frames, agents = z.shape[0], z.shape[1]
+    if frames < 1:
+        raise FCRBMInputError("generate at least one frame")
+    if gibbs is not None and gibbs < 1:
+        raise FCRBMInputError(f"--gibbs must be >= 1, got {gibbs}")
+    start = seed_frames(model, primer)
+    warm = 0 if primer is not None else round(WARMUP_SECONDS * model.fps)
+    zt = torch.from_numpy(np.concatenate((np.repeat(z[:1], warm, axis=0), z)).astype(np.float32))
+    past = torch.from_numpy(np.repeat(start[None], agents, axis=0))
+    gen = torch.Generator().manual_seed(seed)
+    try:
+        out = model.network.generate(past, zt, gibbs=gibbs, generator=gen).numpy()
+    except RuntimeError:
+        # Non-finite hidden probabilities: the frames ran off to infinity.
+        out = np.full((1, 1, 1), np.inf)
+    bad = ~(np.abs(out) <= DIVERGED).all(axis=(0, 2))
+    if bad.any():
+        raise FCRBMDivergedError(
+            f"the model diverged (frames beyond {DIVERGED:g} standard deviations of the data) "
+            f"for valence/arousal {np.round(z[0, 0], 2).tolist()}; this checkpoint is unstable "
+            "there: use a context closer to its training points or retrain with more past_noise"
+        )
+    out = out[:, warm:]
+    motion = model.codec.decode(out[0], name)
+    return motion, (out if batched else out[0])
+
+
+def motion_summary(motion: Motion, mover: int) -> dict[str, Any]:
+    """Root speed (m/s) of joint ``mover`` and mean joint speed (m/s) of a clip."""
+    p = motion.positions_with_end_sites()
+    root = p[:, mover]
+    speed = np.linalg.norm(np.diff(root[:, [0, 2]], axis=0), axis=1) * motion.fps
+    joints = np.linalg.norm(np.diff(p, axis=0), axis=2).mean(1) * motion.fps
+    return {"root_speed": float(speed.mean()), "joint_speed": float(joints.mean())}

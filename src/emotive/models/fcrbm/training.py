@@ -1,0 +1,333 @@
+"""Data, contrastive-divergence training and checkpoints of the FCRBM (issue 6, section 2).
+
+``emotive fcrbm train --config configs/fcrbm.toml``: the clips of :attr:`FCRBMTrainSettings
+.contents` (by default walks) of every style with a valence/arousal entry, in both data sets,
+split by clip per data set (:func:`emotive.data.splits.split_clips`); frames and context as in
+:mod:`emotive.models.fcrbm.data`, the codec fitted on the training split. Every example is a
+frame, its ``N`` past frames and its context, never crossing a clip.
+
+Each epoch runs CD-k over the shuffled training examples in mini-batches
+(:meth:`~emotive.models.fcrbm.model.FCRBM.train_step`: momentum, weight decay), then measures
+the validation **one-step error**: the mean squared error, in standardized units, of the frame
+the model generates (Gibbs sampling, mean-field last step) from the true past and context. A
+checkpoint ``{"kind", "config", "train", "codec", "state", "velocity", "epoch", "rng",
+"best_val", "history", "seed"}`` is written atomically to ``last.pt`` after every epoch and to
+``best.pt`` when the validation error is the lowest so far; ``log.csv`` has one row per epoch.
+Ctrl-C writes ``last.pt`` at the start of the interrupted epoch; ``resume`` continues from it
+with the same batch order. The run is deterministic for a seed on CPU.
+
+Legend: ``T`` frames, ``D`` visible units, ``N`` order, ``M`` examples.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from emotive.errors import DataError
+from emotive.models.fcrbm.data import FrameCodec, clip_context, frame_vectors
+from emotive.models.fcrbm.model import FCRBM, FCRBMConfig, sliding_windows
+from emotive.models.gait.training import (
+    ConfigError,
+    _save,
+    _write_csv,
+    load_settings,
+    training_paths,
+)
+
+#: Data sets of the default training data.
+DEFAULT_DATASETS = ("bandai-namco-1", "bandai-namco-2-locomotion")
+#: Columns of ``log.csv``.
+CSV_COLUMNS = ("epoch", "train_reconstruction", "val_one_step", "seconds")
+#: Marks a checkpoint as an FCRBM one.
+KIND = "fcrbm"
+
+
+@dataclass(frozen=True)
+class FCRBMTrainSettings:
+    """How the FCRBM is trained (``[train]`` of ``configs/fcrbm.toml``).
+
+    Attributes:
+        epochs: epochs in all.
+        batch_size: examples per CD update.
+        datasets: registry names of the data sets.
+        contents: clip contents used (e.g. ``walk``).
+        split_seed: seed of the split by clip.
+        max_clips: for quick runs, at most this many clips per split and data set (0: all).
+        past_noise: standard deviation (standardized units) of Gaussian noise added to the
+            past frames of every training example, so that the model learns to pull
+            generated frames back towards the data instead of amplifying its own errors.
+    """
+
+    epochs: int = 100
+    batch_size: int = 100
+    datasets: tuple[str, ...] = DEFAULT_DATASETS
+    contents: tuple[str, ...] = ("walk",)
+    split_seed: int = 0
+    max_clips: int = 0
+    past_noise: float = 0.0
+
+    def __post_init__(self) -> None:
+        if isinstance(self.past_noise, bool) or not isinstance(self.past_noise, int | float) or (
+                not 0 <= self.past_noise < 10):
+            raise ValueError(f"past_noise must be a number in [0, 10), got {self.past_noise!r}")
+        object.__setattr__(self, "past_noise", float(self.past_noise))
+        for name, low in (("epochs", 1), ("batch_size", 1), ("split_seed", 0),
+                          ("max_clips", 0)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < low:
+                raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
+        for name in ("datasets", "contents"):
+            value = getattr(self, name)
+            if isinstance(value, str) or not value or not all(isinstance(v, str) for v in value):
+                raise ValueError(f"{name} must be a non-empty list of names, got {value!r}")
+            object.__setattr__(self, name, tuple(value))
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-safe dict of every field (tuples as lists)."""
+        return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
+
+
+def load_fcrbm_settings(path: str | Path) -> tuple[FCRBMConfig, FCRBMTrainSettings]:
+    """``[model]`` (:class:`FCRBMConfig` fields but ``visible``, which the data set) and
+    ``[train]`` of a TOML file.
+
+    Raises:
+        ConfigError: as :func:`emotive.models.gait.training.load_settings`.
+    """
+    return load_settings(path, FCRBMConfig, FCRBMTrainSettings, {"visible": 1})
+
+
+@dataclass
+class FCRBMData:
+    """Encoded clips by split.
+
+    Attributes:
+        codec: fitted on the training split.
+        splits: split -> list of ``(clip name, (T, D) frames, (T, 2) context)``.
+    """
+
+    codec: FrameCodec
+    splits: dict[str, list[tuple[str, np.ndarray, np.ndarray]]]
+
+    def examples(self, split: str, order: int) -> tuple[torch.Tensor, ...]:
+        """``v (M, D)``, ``past (M, N, D)``, ``context (M, 2)`` of a split's clips."""
+        parts = [sliding_windows(f, c, order) for _, f, c in self.splits.get(split, [])
+                 if len(f) > order]
+        if not parts:
+            d = self.codec.dim
+            return torch.zeros(0, d), torch.zeros(0, order, d), torch.zeros(0, 2)
+        return tuple(torch.cat([p[k] for p in parts]) for k in range(3))
+
+
+def load_fcrbm_data(settings: FCRBMTrainSettings, progress: bool = False) -> FCRBMData:
+    """The clips of the settings' data sets and contents whose style has a valence/arousal
+    entry, split by clip per data set and encoded with the training split's codec.
+
+    Raises:
+        DataError: a data set is missing or the training split has no clip.
+    """
+    from emotive.data.clips import load_clips
+    from emotive.data.emotion import VALENCE_AROUSAL, style_to_label
+    from emotive.data.splits import split_clips
+    from emotive.models.gait.data import _spread
+
+    raw: dict[str, list[tuple[str, np.ndarray, np.ndarray, Any]]] = {}
+    for name in settings.datasets:
+        clips = [c for c in load_clips(name, contents=settings.contents, progress=progress)
+                 if style_to_label(c.style) in VALENCE_AROUSAL and c.motion.num_frames > 1]
+        for split, members in split_clips(clips, seed=settings.split_seed).items():
+            for clip in _spread(members, settings.max_clips):
+                frames = frame_vectors(clip.motion)
+                raw.setdefault(split, []).append(
+                    (clip.name, frames, clip_context(clip.style, len(frames)), clip.motion))
+    if not raw.get("train"):
+        raise DataError(f"no {'/'.join(settings.contents)} clips with a valence/arousal entry in "
+                        f"{list(settings.datasets)}")
+    codec = FrameCodec.fit([f for _, f, _, _ in raw["train"]], [m for *_, m in raw["train"]])
+    return FCRBMData(codec, {s: [(n, codec.encode(f), c) for n, f, c, _ in items]
+                             for s, items in raw.items()})
+
+
+def one_step_error(model: FCRBM, v: torch.Tensor, past: torch.Tensor, context: torch.Tensor,
+                   seed: int = 0, batch: int = 4096) -> float:
+    """Mean squared error of frames generated one step ahead from the true past."""
+    if not len(v):
+        return math.nan
+    gen = torch.Generator().manual_seed(seed)
+    total = 0.0
+    for a in range(0, len(v), batch):
+        out = model.generate(past[a:a + batch], context[a:a + batch], steps=1, generator=gen)
+        total += float(((out[:, 0] - v[a:a + batch]) ** 2).sum())
+    return total / v.numel()
+
+
+@dataclass
+class FCRBMTrainResult:
+    """What :func:`train_fcrbm` leaves: the model after the last epoch, one dict per epoch
+    (:data:`CSV_COLUMNS`), the output folder and the best validation one-step error."""
+
+    model: FCRBM
+    codec: FrameCodec
+    history: list[dict[str, float]]
+    out_dir: Path
+    best_val: float
+
+
+def load_fcrbm_checkpoint(path: str | Path) -> tuple[FCRBM, FrameCodec, dict[str, Any]]:
+    """The model, codec and raw dict of an FCRBM checkpoint.
+
+    Raises:
+        ConfigError: missing, corrupt, or not an FCRBM checkpoint.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise ConfigError(f"{path}: no such checkpoint")
+    try:
+        ckpt = torch.load(path, map_location="cpu", weights_only=True)
+        if not isinstance(ckpt, dict) or ckpt.get("kind") != KIND:
+            raise ValueError("not an FCRBM checkpoint")
+        model = FCRBM(FCRBMConfig.from_dict(ckpt["config"]))
+        model.load_state_dict(ckpt["state"])
+        codec = FrameCodec.from_dict(ckpt["codec"])
+    except Exception as exc:  # any failure to read is the same problem for the user
+        raise ConfigError(f"{path}: not a usable FCRBM checkpoint ({exc}); retrain it with "
+                          "`emotive fcrbm train`") from None
+    if codec.dim != model.config.visible:
+        raise ConfigError(f"{path}: the codec has {codec.dim} dimensions but the model "
+                          f"{model.config.visible}; the checkpoint is corrupt")
+    model.eval()
+    return model, codec, ckpt
+
+
+def train_fcrbm(
+    config: FCRBMConfig,
+    settings: FCRBMTrainSettings,
+    progress: bool = True,
+    out_dir: str | Path = Path("models/fcrbm"),
+    resume: bool = False,
+    seed: int = 0,
+    *,
+    data: FCRBMData | None = None,
+    on_batch: Callable[[int, int], None] | None = None,
+) -> FCRBMTrainResult:
+    """Train the FCRBM; write ``last.pt``, ``best.pt`` and ``log.csv`` to ``out_dir``.
+
+    Args:
+        config: sizes and CD settings; ``visible`` is replaced by the data's ``D``.
+        settings: the training settings.
+        progress: progress bars on stderr.
+        out_dir: output folder (created).
+        resume: continue from ``out_dir / "last.pt"`` up to ``settings.epochs``.
+        seed: seed of initialization, batch order and hidden samples.
+        data: the encoded splits, when already loaded (:func:`load_fcrbm_data`).
+        on_batch: called as ``on_batch(epoch, batch)`` after every update (tests).
+
+    Raises:
+        ConfigError: ``resume`` without a last checkpoint or with other settings.
+        KeyboardInterrupt: after writing ``last.pt`` (Ctrl-C).
+    """
+    from rich.console import Console
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    out_dir = Path(out_dir)
+    last_path, best_path, csv_path = training_paths(out_dir, resume)
+    data = data if data is not None else load_fcrbm_data(settings, progress)
+    config = replace(config, visible=data.codec.dim, seed=seed)
+    v, past, ctx = data.examples("train", config.order)
+    if not len(v):
+        raise DataError(f"no training clip is longer than the order {config.order}")
+    val = data.examples("val", config.order)
+    torch.manual_seed(seed)
+    rng = np.random.default_rng(seed)
+    gen = torch.Generator().manual_seed(seed)
+    model = FCRBM(config)
+    history: list[dict[str, float]] = []
+    best_val, start_epoch = math.inf, 0
+    if resume:
+        _, _, ckpt = load_fcrbm_checkpoint(last_path)
+        if ckpt["config"] != config.to_dict() or ckpt["train"] != settings.to_dict() | {
+                "epochs": ckpt["train"]["epochs"]}:
+            raise ConfigError(f"{last_path}: made with other settings; cannot resume")
+        model.load_state_dict(ckpt["state"])
+        model._velocity = dict(ckpt["velocity"])
+        rng.bit_generator.state = ckpt["rng"]["numpy"]
+        gen.set_state(ckpt["rng"]["torch"])
+        start_epoch, best_val = int(ckpt["epoch"]), float(ckpt["best_val"])
+        history = list(ckpt["history"])[:start_epoch]
+
+    def checkpoint(epoch: int, rng_state: dict[str, Any]) -> dict[str, Any]:
+        return {
+            "kind": KIND, "config": config.to_dict(), "train": settings.to_dict(),
+            "codec": data.codec.to_dict(), "state": model.state_dict(),
+            "velocity": dict(model._velocity), "epoch": epoch, "rng": rng_state,
+            "best_val": best_val, "history": history, "seed": seed,
+        }
+
+    def rng_state() -> dict[str, Any]:
+        return {"numpy": rng.bit_generator.state, "torch": gen.get_state()}
+
+    console = Console(stderr=True)
+    bars = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                    TimeElapsedColumn(), TextColumn("{task.fields[info]}"), console=console,
+                    disable=not progress, transient=True)
+    n_batches = math.ceil(len(v) / settings.batch_size)
+    epoch, epoch_state, dirty = start_epoch, rng_state(), False
+    try:
+        with bars:
+            epochs_task = bars.add_task("epochs", total=settings.epochs, completed=start_epoch,
+                                        info="")
+            batch_task = bars.add_task("batches", total=n_batches, info="")
+            for epoch in range(start_epoch, settings.epochs):
+                epoch_state = rng_state()
+                began = time.perf_counter()
+                order = rng.permutation(len(v))
+                bars.reset(batch_task, total=n_batches)
+                errors = []
+                for k in range(n_batches):
+                    idx = torch.from_numpy(order[k * settings.batch_size:
+                                                 (k + 1) * settings.batch_size])
+                    p = past[idx]
+                    if settings.past_noise:
+                        p = p + settings.past_noise * torch.randn(p.shape, generator=gen)
+                    errors.append(model.train_step(v[idx], p, ctx[idx], gen))
+                    dirty = True
+                    bars.update(batch_task, advance=1, info=f"reconstruction {np.mean(errors):.4g}")
+                    if on_batch is not None:
+                        on_batch(epoch, k)
+                val_error = one_step_error(model, *val, seed=seed)
+                row = {"epoch": epoch + 1, "train_reconstruction": float(np.mean(errors)),
+                       "val_one_step": val_error,
+                       "seconds": round(time.perf_counter() - began, 3)}
+                history.append(row)
+                score = val_error if math.isfinite(val_error) else row["train_reconstruction"]
+                improved = score < best_val
+                best_val = min(best_val, score)
+                done = checkpoint(epoch + 1, rng_state())
+                if improved:
+                    _save(best_path, done)
+                _save(last_path, done)
+                dirty = False
+                _write_csv(csv_path, history, CSV_COLUMNS)
+                summary = (f"reconstruction {row['train_reconstruction']:.4g}  one-step "
+                           f"{val_error:.4g}" + ("  (best)" if improved else ""))
+                bars.update(epochs_task, advance=1, info=summary)
+                if progress:
+                    bars.console.print(f"epoch {epoch + 1}/{settings.epochs}: {summary}")
+    except KeyboardInterrupt:
+        if dirty:
+            del history[epoch:]
+            _save(last_path, checkpoint(epoch, epoch_state))
+            _write_csv(csv_path, history, CSV_COLUMNS)
+        console.print(f"interrupted: wrote {last_path}; continue with --resume")
+        raise
+    model.eval()
+    return FCRBMTrainResult(model, data.codec, history, out_dir,
+                            best_val if math.isfinite(best_val) else math.nan)

@@ -1,0 +1,181 @@
+"""Frames, codec, training loop and generation of the FCRBM on synthetic walks (no data)."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+
+import numpy as np
+import pytest
+import torch
+
+from emotive.core import Motion, Skeleton
+from emotive.core.ops import canonicalize_facing
+from emotive.errors import DataError, RigError
+from emotive.models.fcrbm.data import FrameCodec, clip_context, frame_vectors
+from emotive.models.fcrbm.generate import (
+    FCRBMDivergedError,
+    FCRBMInputError,
+    FCRBMModel,
+    constant_context,
+    emotion_context,
+    generate_motion,
+    schedule_context,
+    seed_frames,
+)
+from emotive.models.fcrbm.model import FCRBMConfig
+from emotive.models.fcrbm.training import (
+    FCRBMData,
+    FCRBMTrainSettings,
+    load_fcrbm_checkpoint,
+    load_fcrbm_settings,
+    train_fcrbm,
+)
+from emotive.models.gait.training import ConfigError
+from emotive.transforms.np_rotations import axis_angle_to_quaternion
+from rigs import RIG
+
+FPS = 30.0
+
+
+def walk(frames: int = 90, speed: float = 1.0, turn: float = 0.3, swing: float = 0.3) -> Motion:
+    """A synthetic walk on :data:`RIG` curving at ``turn`` rad/s, legs and arms swinging."""
+    ends = [(j, r[3]) for j, r in enumerate(RIG) if r[3] is not None]
+    sk = Skeleton(tuple(r[0] for r in RIG), np.array([r[1] for r in RIG]),
+                  np.array([r[2] for r in RIG], dtype=float),
+                  end_site_parents=[j for j, _ in ends], end_site_offsets=[o for _, o in ends])
+    idx = {r[0]: j for j, r in enumerate(RIG)}
+    t = np.arange(frames) / FPS
+    phase = 2 * np.pi * t * (1 + speed)
+    aa = np.zeros((frames, len(RIG), 3))
+    yaw = turn * t
+    aa[:, 0, 1] = yaw
+    for s, sign in (("L", 1.0), ("R", -1.0)):
+        aa[:, idx[f"UpperLeg_{s}"], 0] = -0.2 + sign * swing * np.sin(phase)
+        aa[:, idx[f"LowerLeg_{s}"], 0] = 0.4 + 0.2 * np.cos(phase)
+        aa[:, idx[f"UpperArm_{s}"], 0] = -sign * swing * np.sin(phase)
+    positions = np.broadcast_to(sk.offsets, (frames, len(RIG), 3)).copy()
+    step = speed / FPS
+    positions[:, 0, 0] += np.cumsum(step * np.sin(yaw))
+    positions[:, 0, 2] += np.cumsum(step * np.cos(yaw))
+    return Motion(sk, axis_angle_to_quaternion(aa), positions, FPS, {"name": "synthetic"})
+
+
+def test_frames_round_trip_through_the_codec():
+    m = walk()
+    frames = frame_vectors(m)
+    codec = FrameCodec.fit([frames, frame_vectors(walk(speed=0.5))], [m, walk(speed=0.5)])
+    assert frames.shape == (m.num_frames, 4 + 3 * m.skeleton.num_joints)
+    assert codec.dim < frames.shape[1]  # joints that never move are left out
+    back = codec.decode(codec.encode(frames))
+    a = canonicalize_facing(m).positions_with_end_sites()
+    b = canonicalize_facing(back).positions_with_end_sites()
+    assert np.abs(a - b).max() < 1e-4
+    again = FrameCodec.from_dict(json.loads(json.dumps(codec.to_dict())))
+    np.testing.assert_allclose(again.encode(frames), codec.encode(frames))
+
+
+def test_bad_clips_raise():
+    m = walk()
+    with pytest.raises(DataError, match="at least 2 frames"):
+        frame_vectors(m.replace(rotations=m.rotations[:1], positions=m.positions[:1]))
+    rot = m.rotations.copy()
+    rot[3, 2] = np.nan
+    with pytest.raises(DataError, match="NaN"):
+        frame_vectors(m.replace(rotations=rot))
+    sk = m.skeleton
+    odd = Skeleton(tuple(f"bone{j}" for j in range(sk.num_joints)), sk.parents, sk.offsets)
+    with pytest.raises(RigError, match="joint roles"):
+        frame_vectors(Motion(odd, m.rotations, m.positions, FPS))
+
+
+def test_context_scale_and_inputs(tmp_path):
+    np.testing.assert_allclose(clip_context("normal", 3), 2.0)
+    assert clip_context("happy", 1)[0, 0] > 2.9  # Russell's happy: high valence
+    np.testing.assert_allclose(emotion_context("neutral"), [2.0, 2.0])
+    for v, a in ((np.nan, 2), (2, 0), (2, -1), (2, 99)):
+        with pytest.raises(FCRBMInputError, match="valence and arousal"):
+            constant_context(v, a, 5)
+    path = tmp_path / "s.json"
+    path.write_text(json.dumps([{"t": 0, "valence": 3, "arousal": 1},
+                                {"t": 1, "emotion": "neutral"}]))
+    z = schedule_context(path, 61, FPS)
+    np.testing.assert_allclose(z[0], [3, 1])
+    np.testing.assert_allclose(z[15], [2.5, 1.5])
+    np.testing.assert_allclose(z[-1], [2, 2])
+    path.write_text(json.dumps([{"t": 0}]))
+    with pytest.raises(FCRBMInputError, match="valence"):
+        schedule_context(path, 5, FPS)
+    path.write_text("not json")
+    with pytest.raises(FCRBMInputError, match="cannot read"):
+        schedule_context(path, 5, FPS)
+
+
+def synthetic_data(order: int) -> FCRBMData:
+    """Slow low-arousal walks and fast high-arousal walks."""
+    clips = {"slow": (walk(120, speed=0.4, swing=0.15), 1.0),
+             "fast": (walk(120, speed=1.4, swing=0.4), 3.0),
+             "slow-val": (walk(90, speed=0.4, swing=0.15), 1.0)}
+    frames = {k: frame_vectors(m) for k, (m, _) in clips.items()}
+    codec = FrameCodec.fit([frames["slow"], frames["fast"]],
+                           [clips["slow"][0], clips["fast"][0]])
+
+    def item(k):
+        return (k, codec.encode(frames[k]),
+                np.tile([2.0, clips[k][1]], (len(frames[k]), 1)))
+
+    return FCRBMData(codec, {"train": [item("slow"), item("fast")], "val": [item("slow-val")]})
+
+
+def test_training_writes_checkpoints_resumes_and_generates(tmp_path):
+    torch.manual_seed(0)
+    config = FCRBMConfig(visible=1, order=3, hidden=32, factors=16, factors_past_visible=16,
+                         factors_past_hidden=16, learning_rate=1e-3, gibbs=5)
+    settings = FCRBMTrainSettings(epochs=2, batch_size=32, past_noise=0.5)
+    data = synthetic_data(config.order)
+    result = train_fcrbm(config, settings, progress=False, out_dir=tmp_path, data=data)
+    assert [r["epoch"] for r in result.history] == [1, 2]
+    assert all(np.isfinite(r["val_one_step"]) for r in result.history)
+    assert (tmp_path / "best.pt").exists() and (tmp_path / "log.csv").exists()
+    more = train_fcrbm(config, replace(settings, epochs=3), progress=False, out_dir=tmp_path,
+                       data=data, resume=True)
+    assert [r["epoch"] for r in more.history] == [1, 2, 3]
+    with pytest.raises(ConfigError, match="other settings"):
+        train_fcrbm(config, replace(settings, batch_size=7, epochs=4), progress=False,
+                    out_dir=tmp_path, data=data, resume=True)
+    network, codec, _ = load_fcrbm_checkpoint(tmp_path / "last.pt")
+    model = FCRBMModel(network, codec)
+    motion, _ = generate_motion(model, constant_context(2, 2, 40), seed=1)
+    assert motion.num_frames == 40 and np.isfinite(motion.positions).all()
+    again, _ = generate_motion(model, constant_context(2, 2, 40), seed=1)
+    np.testing.assert_array_equal(again.positions, motion.positions)
+    with pytest.raises(FCRBMInputError, match="initial frames"):
+        seed_frames(model, walk(3))
+
+
+def test_divergence_is_a_clear_error(tmp_path):
+    config = FCRBMConfig(visible=1, order=3, hidden=8, factors=4, factors_past_visible=4,
+                         factors_past_hidden=4, gibbs=2)
+    data = synthetic_data(config.order)
+    result = train_fcrbm(config, FCRBMTrainSettings(epochs=1), progress=False,
+                         out_dir=tmp_path, data=data)
+    with torch.no_grad():
+        # An autoregressive gain far above one: every frame grows without bound.
+        result.model.a_vis.fill_(3.0)
+        result.model.a_past.fill_(3.0)
+        result.model.a_ctx.fill_(3.0)
+    with pytest.raises(FCRBMDivergedError, match="diverged"):
+        generate_motion(FCRBMModel(result.model, result.codec), constant_context(2, 2, 30))
+
+
+def test_settings_file(tmp_path):
+    config, settings = load_fcrbm_settings("configs/fcrbm.toml")
+    assert (config.order, config.hidden, config.factors) == (6, 400, 300)
+    assert settings.contents == ("walk",)
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[model]\nvisible = 5\n")
+    with pytest.raises(ConfigError, match="set from the data"):
+        load_fcrbm_settings(bad)
+    bad.write_text("[train]\npast_noise = -1\n")
+    with pytest.raises(ConfigError, match="past_noise"):
+        load_fcrbm_settings(bad)
