@@ -57,3 +57,17 @@ def comparison(
         "higher_is_better": higher_is_better,
         "ratio": num / den if den else float("inf"),
     }
+
+
+def write_record(path: Any, record: dict[str, Any]) -> None:
+    """Write a result record as indented JSON, atomically, and say where."""
+    import json
+    from pathlib import Path
+
+    from emotive.io.atomic import atomic_output
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_output(path) as tmp:
+        tmp.write_text(json.dumps(record, indent=1, default=float))
+    print(f"\nwrote {path}")

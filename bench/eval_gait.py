@@ -19,7 +19,6 @@ Bandai Namco data and the committed checkpoints (``src/emotive/assets/gait/``).
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
@@ -29,7 +28,7 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-from common import machine_info  # noqa: E402
+from common import machine_info, write_record  # noqa: E402
 
 #: Steps of the long-horizon run (issue 3: 10,000).
 LONG_STEPS = 10_000
@@ -235,12 +234,7 @@ def main() -> None:
     if args.part in ("all", "suites"):
         record["turns"] = turn_speeds(args.checkpoint)
         record["suites"] = generated_suites(2 if args.quick else SEEDS, args.checkpoint)
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    from emotive.io.atomic import atomic_output
-
-    with atomic_output(args.out) as tmp:
-        tmp.write_text(json.dumps(record, indent=1, default=float))
-    print(f"\nwrote {args.out}")
+    write_record(args.out, record)
 
 
 if __name__ == "__main__":

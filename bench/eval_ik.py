@@ -26,7 +26,6 @@ start), and compared with the original:
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
@@ -36,7 +35,7 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-from common import machine_info  # noqa: E402
+from common import machine_info, write_record  # noqa: E402
 
 EMOTIONS = ("happy", "sad", "angry", "neutral")
 DATASET = "bandai-namco-1"
@@ -362,12 +361,7 @@ def main() -> None:
         "p_intended": rows,
         "anova": aov,
     }
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    from emotive.io.atomic import atomic_output
-
-    with atomic_output(args.out) as tmp:
-        tmp.write_text(json.dumps(record, indent=1, default=float))
-    print(f"\nwrote {args.out}")
+    write_record(args.out, record)
 
 
 if __name__ == "__main__":
