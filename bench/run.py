@@ -22,6 +22,8 @@ import bench_data  # noqa: E402
 import bench_features  # noqa: E402
 import bench_gait  # noqa: E402
 import bench_kinematics  # noqa: E402
+import bench_lgb  # noqa: E402
+import bench_mar  # noqa: E402
 from common import machine_info  # noqa: E402
 
 
@@ -53,6 +55,10 @@ def main() -> None:
         ("gait", lambda: bench_gait.run(
             agents=(1, 10, 100) if args.quick else (1, 10, 100, 1000),
             baseline_agents=(1, 10) if args.quick else (1, 10, 100))),
+        ("mar", lambda: bench_mar.run(frames=60 if args.quick else 200,
+                                      baseline_frames=10 if args.quick else 20)),
+        ("lgb", lambda: bench_lgb.run(emotions=("sad",) if args.quick else bench_lgb.EMOTIONS,
+                                      repeats=1 if args.quick else 3)),
     ):
         print(f"running {name} ...", flush=True)
         results += fn()

@@ -15,9 +15,12 @@ import emotive
 from emotive.commands import inspect as _inspect
 from emotive.commands.classify import classify, evaluate, train_app
 from emotive.commands.data import app as data_app
+from emotive.commands.fcrbm import app as fcrbm_app
 from emotive.commands.generate import generate
 from emotive.commands.reconstruct import reconstruct
 from emotive.commands.render import preview
+from emotive.commands.resample import resample
+from emotive.commands.transfer import transfer
 from emotive.errors import EmotiveError
 
 app = typer.Typer(
@@ -52,10 +55,13 @@ app.command("features")(_inspect.features)
 app.command("preview")(preview)
 app.command("generate")(generate)
 app.command("reconstruct")(reconstruct)
+app.command("resample")(resample)
+app.command("transfer")(transfer)
 app.command("classify")(classify)
 app.command("evaluate")(evaluate)
 app.add_typer(train_app, name="train")
 app.add_typer(data_app, name="data")
+app.add_typer(fcrbm_app, name="fcrbm")
 
 
 def main() -> None:

@@ -210,3 +210,17 @@ def test_summary_reports_clamped_targets_per_chain():
     assert f"{FRAMES} frames (1.50 s) rebuilt in 0.90 s (20.0 ms/frame)" in line
     assert "head_torso 0.10/0.10, left_leg 0.00/0.00" in line
     assert line.endswith("clamped: left_leg 3 (l_ankle, l_toe; up to 12.5 mm beyond reach)")
+
+
+def test_summary_reports_frames_left_off_target():
+    from emotive.ik import IKResult, Unreachable
+
+    motion = make_walk()
+    none = Unreachable(np.zeros(0, dtype=np.int64), (), np.zeros(0))
+    residual = np.full(FRAMES, 1e-4)
+    residual[[4, 9]] = [0.02, 0.05]
+    result = IKResult(motion, {"left_arm": residual}, {"left_arm": none}, seconds=0.9,
+                      off_target={"left_arm": np.array([4, 9])})
+    line = summary(result, motion.fps)
+    assert "off target by more than 10 mm after retries: left_arm 2 (4.4 %, up to 50 mm)" in line
+    assert line.endswith("unreachable targets clamped: none")

@@ -107,3 +107,26 @@ def test_warm_start_gives_continuous_solution_on_smooth_path():
     path_step = np.degrees(t[1] - t[0])
     assert step.max() < 3 * path_step
     assert np.all(np.sum(q[1:] * q[:-1], axis=-1) > 0)
+
+
+def test_frames_the_first_pass_leaves_off_target_are_retried():
+    chain, _ = two_link()
+    # Far from the neutral pose: one iteration per frame cannot get there.
+    targets = np.tile([[[0.5, -0.4, 0.45]]], (6, 1, 1))
+    once = _solve(chain, targets, warm_start=False, max_iter=1, retry_above=np.inf)
+    assert once.residual.min() > 0.01
+    np.testing.assert_array_equal(once.off_target, np.arange(6))
+    retried = _solve(chain, targets, warm_start=False, max_iter=1)
+    assert retried.residual.max() < 1e-3
+    assert len(retried.off_target) == 0
+    assert retried.iterations.min() > once.iterations.max()
+
+
+def test_frames_held_back_by_a_joint_limit_are_reported_off_target():
+    chain, _ = two_link(hip_swing=10.0)
+    targets = np.array([[[0.0, -0.99, 0.0]], [[0.8, -0.2, 0.0]], [[0.02, -0.985, 0.0]]])
+    sol = _solve(chain, targets, max_iter=60)
+    np.testing.assert_array_equal(sol.off_target, [1])  # the limit, not the solver, lost
+    assert sol.residual[1] > 0.1 and sol.residual[[0, 2]].max() < 1e-3
+    loose = _solve(chain, targets, max_iter=60, off_target=1.0)
+    assert len(loose.off_target) == 0

@@ -440,3 +440,29 @@ class TestNumpyWrappers:
             r.quaternion_continuity(torch.from_numpy(a)).numpy(),
         )
         assert npr.quaternion_to_matrix(a.astype(np.float32)).dtype == np.float32
+
+
+@settings(max_examples=50, deadline=None)
+@given(seed=st.integers(0, 10_000), spread=st.floats(0.0, 0.3), flips=st.integers(0, 5))
+def test_quaternion_mean_recovers_the_centre_whatever_the_signs(seed, spread, flips):
+    rng = np.random.default_rng(seed)
+    centre = npr.quaternion_normalize(rng.normal(size=4))
+    # Rotations scattered symmetrically about the centre: +-delta pairs.
+    delta = npr.axis_angle_to_quaternion(rng.normal(size=(6, 3)) * spread)
+    q = np.concatenate([npr.quaternion_multiply(centre[None], delta),
+                        npr.quaternion_multiply(centre[None], npr.quaternion_conjugate(delta))])
+    q[:flips] *= -1.0  # the sign of a quaternion does not change its rotation
+    mean = npr.quaternion_mean(q)
+    assert mean[0] >= 0 and abs(np.linalg.norm(mean) - 1) < 1e-9
+    assert abs(abs(float(mean @ centre)) - 1) < 1e-6
+
+
+def test_quaternion_mean_along_an_axis():
+    q = np.zeros((3, 5, 4))
+    q[..., 0] = 1.0
+    q[1, :, 0] = -1.0
+    np.testing.assert_allclose(npr.quaternion_mean(q, axis=0), np.tile([1.0, 0, 0, 0], (5, 1)))
+    assert npr.quaternion_mean(q, axis=1).shape == (3, 4)
+    q[0, 2, 1] = np.nan
+    mean = npr.quaternion_mean(q, axis=0)
+    assert np.isnan(mean[2]).all() and np.isfinite(np.delete(mean, 2, 0)).all()

@@ -10,6 +10,8 @@ from typing import Annotated
 
 import typer
 
+from emotive.commands.options import PreviewOpt
+
 
 def generate(
     out: Annotated[
@@ -33,11 +35,7 @@ def generate(
     seconds: Annotated[
         float, typer.Option("--seconds", help="Length of the walk.", min=0.1, max=3600.0)
     ] = 20.0,
-    preview: Annotated[
-        Path | None,
-        typer.Option("--preview", help="Also write a stick-figure video: .mp4 or .gif.",
-                     show_default=False),
-    ] = None,
+    preview: PreviewOpt = None,
     npz: Annotated[
         Path | None,
         typer.Option("--npz", help="Also write joint positions and emotion as .npz.",

@@ -19,14 +19,18 @@ if TYPE_CHECKING:
     from emotive.ik import IKResult
 
 
-def summary(result: IKResult, fps: float) -> str:
-    """One line: frames, clip and solve seconds, per-chain target residual and clamped targets.
+def summary(result: IKResult, fps: float, verb: str = "rebuilt") -> str:
+    """One line: frames, clip and solve seconds, per-chain target residual, frames left off
+    target after the solver's retries, and clamped targets.
 
     Args:
         result: the reconstruction.
         fps: the clip's frame rate.
+        verb: what was done to the frames (``"rebuilt"``, ``"resampled and rebuilt"``).
     """
     import numpy as np
+
+    from emotive.ik.solver import OFF_TARGET
 
     n = result.motion.num_frames
     residual = ", ".join(
@@ -39,9 +43,17 @@ def summary(result: IKResult, fps: float) -> str:
         for name, u in result.unreachable.items()
         if len(u)
     ]
+    off = [
+        f"{name} {len(f)} ({100 * len(f) / max(n, 1):.1f} %, up to "
+        f"{1000 * float(result.residuals[name][f].max()):.0f} mm)"
+        for name, f in result.off_target.items()
+        if len(f)
+    ]
     return (
-        f"{n} frames ({n / fps:.2f} s) rebuilt in {result.seconds:.2f} s "
+        f"{n} frames ({n / fps:.2f} s) {verb} in {result.seconds:.2f} s "
         f"({result.ms_per_frame:.1f} ms/frame); target residual mean/max mm: {residual}; "
+        f"frames off target by more than {1000 * OFF_TARGET:g} mm after retries: "
+        f"{'; '.join(off) if off else 'none'}; "
         f"unreachable targets clamped: {'; '.join(clamped) if clamped else 'none'}"
     )
 

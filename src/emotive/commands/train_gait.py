@@ -10,23 +10,15 @@ from typing import Annotated
 
 import typer
 
+from emotive.commands.options import ConfigOpt, EpochsOpt, ResumeOpt, TrainOutOpt
+
 
 def train_gait_command(
-    config: Annotated[
-        Path, typer.Option("--config", help="TOML file with [model] and [train] sections.")
-    ] = Path("configs/gait.toml"),
-    out: Annotated[
-        Path, typer.Option("--out", help="Folder for last.pt, best.pt and log.csv.")
-    ] = Path("models/gait"),
-    resume: Annotated[
-        bool, typer.Option("--resume", help="Continue from the folder's last.pt.")
-    ] = False,
+    config: ConfigOpt = Path("configs/gait.toml"),
+    out: TrainOutOpt = Path("models/gait"),
+    resume: ResumeOpt = False,
     seed: Annotated[int, typer.Option(help="Seed of initialization, batches and curriculum.")] = 0,
-    epochs: Annotated[
-        int | None,
-        typer.Option(help="Epochs in all (default: the config's [train] epochs).", min=1,
-                     show_default=False),
-    ] = None,
+    epochs: EpochsOpt = None,
 ) -> None:
     """Train the emotive gait network on the real data (Ctrl-C saves; --resume continues)."""
     from dataclasses import replace

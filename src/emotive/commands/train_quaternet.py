@@ -10,23 +10,15 @@ from typing import Annotated
 
 import typer
 
+from emotive.commands.options import ConfigOpt, EpochsOpt, ResumeOpt, TrainOutOpt
+
 
 def train_quaternet_command(
-    config: Annotated[
-        Path, typer.Option("--config", help="TOML file with [model] and [train] sections.")
-    ] = Path("configs/quaternet.toml"),
-    out: Annotated[
-        Path, typer.Option("--out", help="Folder for last.pt, best.pt and log.csv.")
-    ] = Path("models/quaternet"),
-    resume: Annotated[
-        bool, typer.Option("--resume", help="Continue from the folder's last.pt.")
-    ] = False,
+    config: ConfigOpt = Path("configs/quaternet.toml"),
+    out: TrainOutOpt = Path("models/quaternet"),
+    resume: ResumeOpt = False,
     seed: Annotated[int, typer.Option(help="Seed of initialization, batches and curriculum.")] = 0,
-    epochs: Annotated[
-        int | None,
-        typer.Option(help="Epochs in all (default: the config's [train] epochs).", min=1,
-                     show_default=False),
-    ] = None,
+    epochs: EpochsOpt = None,
 ) -> None:
     """Train the QuaterNet baseline on the gait data (Ctrl-C saves; --resume continues)."""
     from dataclasses import replace

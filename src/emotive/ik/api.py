@@ -33,6 +33,8 @@ class IKResult:
         unreachable: chain name -> targets clamped to the chain's reach (frames, distances).
         iterations: chain name -> ``(T,)`` DLS iterations per frame.
         seconds: wall time of the solve.
+        off_target: chain name -> ``(K,)`` frames whose residual stays above the solver's
+            ``off_target`` tolerance after its retries (see :mod:`emotive.ik.solver`).
     """
 
     motion: Motion
@@ -40,6 +42,7 @@ class IKResult:
     unreachable: dict[str, Unreachable]
     iterations: dict[str, np.ndarray] = field(default_factory=dict)
     seconds: float = 0.0
+    off_target: dict[str, np.ndarray] = field(default_factory=dict)
 
     @property
     def ms_per_frame(self) -> float:
@@ -110,7 +113,7 @@ def _solve_chains(
 ) -> IKResult:
     start = time.perf_counter()
     rot = motion.rotations.copy()
-    residuals, unreachable, iterations = {}, {}, {}
+    residuals, unreachable, iterations, off_target = {}, {}, {}, {}
     sk = motion.skeleton
     for name, chain in chains.items():
         if name not in targets:
@@ -134,9 +137,10 @@ def _solve_chains(
         rot[:, chain.joints] = sol.rotations
         residuals[name], unreachable[name] = sol.residual, sol.unreachable
         iterations[name] = sol.iterations
+        off_target[name] = sol.off_target
     return IKResult(
         motion.replace(rotations=rot), residuals, unreachable, iterations,
-        time.perf_counter() - start,
+        time.perf_counter() - start, off_target,
     )
 
 

@@ -22,8 +22,8 @@ from emotive.core.skeleton import Skeleton
 from emotive.errors import EmotiveError, RigError
 from emotive.transforms.np_rotations import (
     quaternion_invert,
+    quaternion_mean,
     quaternion_multiply,
-    quaternion_normalize,
     quaternion_to_axis_angle,
 )
 
@@ -185,12 +185,6 @@ def _frame_axes(bone: np.ndarray, first: np.ndarray | None = None) -> np.ndarray
     return np.stack((a, b, np.cross(a, b)), axis=1)
 
 
-def _mean_rotation(q: np.ndarray) -> np.ndarray:
-    """Chordal mean of ``(T, 4)`` quaternions (sign-aligned to the first)."""
-    aligned = np.where((q @ q[0])[:, None] < 0, -q, q)
-    return quaternion_normalize(aligned.mean(0))
-
-
 def _hinge_axis(local: np.ndarray | None) -> tuple[np.ndarray, float]:
     """Hinge axis (local frame) and median flexion from ``(T, 4)`` local rotations.
 
@@ -275,7 +269,7 @@ def build_chain(
         else:
             axes[i] = _frame_axes(bone)
             if local is not None:
-                ref[i] = neutral[i] = _mean_rotation(local)
+                ref[i] = neutral[i] = quaternion_mean(local)
     base = int(skeleton.parents[joints[0]])
     if base < 0:
         raise RigError(f"chain {spec.name}: the first chain joint needs a parent")

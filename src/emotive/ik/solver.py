@@ -5,6 +5,15 @@ previous frame's solution, so the Python loop runs over a segment's length, not 
 Each segment but the first starts ``burn_in`` frames early from the initial pose and discards
 those frames, so that its first kept frame is already warm.
 
+Frames that end more than ``retry_above`` from a target are solved again, and the best of three
+retries is kept: from their own solution with ``retry_iter`` iterations, from the initial pose
+with as many, and backwards in time from the next frame on target over at most
+:data:`RETRY_BACKWARD` frames (a warm start that the forward pass, stuck in the wrong branch
+after a joint limit, could not give them). Frames still
+more than ``off_target`` away are reported in :attr:`ChainSolution.off_target`: on the Bandai
+Namco clips more iterations alone do not help them (the poses leave the joint limits or the
+solver sits in a local minimum), so they are reported instead of silently kept.
+
 Legend: ``T`` frames, ``B`` segments solved together, ``k`` chain joints, ``M`` targets.
 """
 
@@ -12,7 +21,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import torch
@@ -28,6 +37,12 @@ from emotive.transforms.rotations import (
 )
 
 _DTYPE = torch.float64
+#: Residual above which a frame is retried and reported as off target, metres. The solver's
+#: tolerance is 0.2 mm; 10 mm is a visible miss.
+OFF_TARGET = 0.01
+#: Most frames of a run off target that the backward retry walks through (it steps through
+#: them one by one, so a long run would cost a long sequential pass).
+RETRY_BACKWARD = 60
 
 
 @dataclass(frozen=True)
@@ -56,8 +71,10 @@ class ChainSolution:
         rotations: ``(T, k, 4)`` local rotations of the chain joints.
         theta: ``(T, k, 3)`` chain parameters (inside the limits).
         residual: ``(T,)`` largest distance between a (clamped) target and its point, metres.
-        iterations: ``(T,)`` DLS iterations spent on each frame.
+        iterations: ``(T,)`` DLS iterations spent on each frame (retries included).
         unreachable: the clamped targets.
+        off_target: ``(K,)`` frames whose residual stays above the ``off_target`` tolerance
+            after the retries.
     """
 
     rotations: np.ndarray
@@ -65,6 +82,7 @@ class ChainSolution:
     residual: np.ndarray
     iterations: np.ndarray
     unreachable: Unreachable
+    off_target: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
 
 
 def check_targets(name: str, targets: np.ndarray) -> None:
@@ -227,6 +245,9 @@ def solve_chain(
     warm_start: bool = True,
     segment: int = 32,
     burn_in: int = 8,
+    retry_above: float = OFF_TARGET,
+    retry_iter: int = 24,
+    off_target: float = OFF_TARGET,
 ) -> ChainSolution:
     """Solve one chain for every frame by damped least squares with joint limits.
 
@@ -252,6 +273,11 @@ def solve_chain(
         warm_start: start each frame from the previous frame's solution.
         segment: frames per segment solved in sequence (``warm_start`` only).
         burn_in: extra frames each segment solves before its own first frame.
+        retry_above: frames whose residual exceeds this many metres are solved again (see the
+            module docstring); ``inf`` disables the retries.
+        retry_iter: iteration cap of the retries that solve each frame alone (three times
+            that, as for every first frame); the backward retry uses ``max_iter``.
+        off_target: frames whose final residual exceeds this many metres are reported.
 
     Returns:
         The solution.
@@ -260,10 +286,82 @@ def solve_chain(
         IKError: NaN or infinite targets (naming the chain and frames), or wrong shapes.
     """
     with single_thread():
-        return _solve(
-            chain, base_rot, base_pos, local_pos, target_offsets, targets, init, posture,
-            damping, posture_gain, max_iter, tol, warm_start, segment, burn_in,
-        )
+        args = (chain, *(np.asarray(a, dtype=np.float64)
+                         for a in (base_rot, base_pos, local_pos, target_offsets, targets)))
+        sol = _solve(*args, init, posture, damping, posture_gain, max_iter, tol, warm_start,
+                     segment, burn_in)
+        t_len = len(sol.residual)
+        post = np.broadcast_to(np.asarray(init if posture is None else posture, np.float64),
+                               (t_len, len(chain.joints), 4))
+        sol = _retry(args, sol, post, np.broadcast_to(np.asarray(init, np.float64), post.shape),
+                     damping, posture_gain, max_iter, retry_iter, tol, retry_above)
+        off = np.flatnonzero(sol.residual > off_target)
+        return ChainSolution(sol.rotations, sol.theta, sol.residual, sol.iterations,
+                             sol.unreachable, off)
+
+
+def _retry(
+    args: tuple,
+    sol: ChainSolution,
+    posture: np.ndarray,
+    init: np.ndarray,
+    damping: float,
+    posture_gain: float,
+    max_iter: int,
+    retry_iter: int,
+    tol: float,
+    above: float,
+) -> ChainSolution:
+    """Solve the frames whose residual exceeds ``above`` again; keep each frame's best.
+
+    Args:
+        args: ``(chain, base_rot, base_pos, local_pos, target_offsets, targets)`` of the solve.
+        sol: the first solution.
+        posture: ``(T, k, 4)`` posture of the solve.
+        init: ``(T, k, 4)`` initial pose of the solve.
+    """
+    bad = np.flatnonzero(sol.residual > above)
+    if not len(bad):
+        return sol
+    chain, targets = args[0], args[5]
+    t_len = len(targets)
+    rot, theta = sol.rotations.copy(), sol.theta.copy()
+    resid, iters = sol.residual.copy(), sol.iterations.copy()
+
+    def attempt(frames: np.ndarray, start: np.ndarray, warm: bool) -> None:
+        sub = [a[frames] for a in args[1:]]
+        r = _solve(chain, *sub, start, posture[frames], damping, posture_gain, retry_iter, tol,
+                   warm, len(frames), 0)
+        iters[frames] += r.iterations
+        better = r.residual < resid[frames]
+        f = frames[better]
+        rot[f], theta[f], resid[f] = r.rotations[better], r.theta[better], r.residual[better]
+
+    attempt(bad, rot[bad], False)
+    attempt(bad, init[bad], False)
+    # Backwards from the next frame on target through each run of frames still off target, all
+    # runs side by side: row r holds run r reversed after its good frame, padded with its last.
+    still = np.flatnonzero(resid > above)
+    runs = np.split(still, np.flatnonzero(np.diff(still) > 1) + 1) if len(still) else []
+    # The backward pass is sequential: each run is retried over its last frames only.
+    runs = [r[-RETRY_BACKWARD:] for r in runs if r[-1] + 1 < t_len]
+    if runs:
+        width = max(len(r) for r in runs) + 1
+        rows = np.stack([np.pad(np.arange(r[-1] + 1, r[0] - 1, -1), (0, width - len(r) - 1),
+                                mode="edge") for r in runs])
+        real = np.arange(width)[None, :] <= np.array([len(r) for r in runs])[:, None]
+        frames = rows.ravel()
+        sub = [a[frames] for a in args[1:]]
+        r = _solve(chain, *sub, rot[frames], posture[frames], damping, posture_gain,
+                   max_iter, tol, True, width, 0)
+        keep = real.ravel()
+        f, res = frames[keep], r.residual[keep]
+        iters[f] += r.iterations[keep]
+        better = res < resid[f]
+        g = f[better]
+        rot[g] = r.rotations[keep][better]
+        theta[g], resid[g] = r.theta[keep][better], res[better]
+    return ChainSolution(rot, theta, resid, iters, sol.unreachable)
 
 
 def _solve(
@@ -334,33 +432,42 @@ def _solve(
         tgt, post = t_targets[idx], t_post[idx]
         brot, npos = t_base[idx], nodes_pos[idx]
         cap = max_iter * 3 if step == 0 else max_iter
-        used = 0
+        used = torch.zeros(len(frames), dtype=torch.int64)
+        # Frames still iterating: each leaves once on target or once its step vanishes.
+        act = torch.arange(len(frames))
         for _ in range(cap):
-            grot, jpos, pts = kern.points(theta, brot, npos)
-            err = tgt - pts
-            if float(err.norm(dim=-1).max()) < tol:
-                break
-            jac = kern.jacobian(theta, grot, jpos, pts)
+            th, ta = theta[act], tgt[act]
+            grot, jpos, pts = kern.points(th, brot[act], npos[act])
+            err = ta - pts
+            going = err.norm(dim=-1).amax(-1) >= tol
+            if not bool(going.all()):
+                act, th, err = act[going], th[going], err[going]
+                grot, jpos, pts = grot[going], jpos[going], pts[going]
+                if not len(act):
+                    break
+            b = len(act)
+            jac = kern.jacobian(th, grot, jpos, pts)
             jw = jac * kern.sqrt_w.repeat_interleave(3)[:, None]
-            ew = (err * kern.sqrt_w[:, None]).reshape(len(frames), -1)
+            ew = (err * kern.sqrt_w[:, None]).reshape(b, -1)
             jtj = jw.transpose(1, 2) @ jw
             grad = (jw.transpose(1, 2) @ ew[..., None]) * kern.active[:, None]
             sol = torch.linalg.solve(jtj + lam2 * eye, torch.cat((grad, jtj), -1))
             # The posture pull goes through the (damped) null space of the task, so it moves
             # only redundant DOF and does not bias the targets.
-            pull = (eye - sol[..., 1:]) @ (post - theta).reshape(len(frames), -1, 1)
+            pull = (eye - sol[..., 1:]) @ (post[act] - th).reshape(b, -1, 1)
             delta = sol[..., 0] + posture_gain * pull[..., 0] * kern.active
             delta = delta.reshape(-1, k, 3)
             norm = delta.norm(dim=-1, keepdim=True)
             delta = delta * torch.clamp(0.5 / norm.clamp_min(1e-12), max=1.0)
-            theta = torch.minimum(torch.maximum(theta + delta, kern.lower), kern.upper)
-            used += 1
-            if float(norm.max()) < 1e-7:
+            theta[act] = torch.minimum(torch.maximum(th + delta, kern.lower), kern.upper)
+            used[act] += 1
+            act = act[norm.amax((1, 2)) >= 1e-7]
+            if not len(act):
                 break
         _, _, pts = kern.points(theta, brot, npos)
         kept = torch.as_tensor(frames[keep])
         theta_out[kept] = theta[torch.as_tensor(keep)]
         resid_out[kept] = (tgt - pts).norm(dim=-1).max(-1).values[torch.as_tensor(keep)]
-        iters_out[frames[keep]] = used
+        iters_out[frames[keep]] = used.numpy()[keep]
     rotations = kern.local(theta_out).numpy()
     return ChainSolution(rotations, theta_out.numpy(), resid_out.numpy(), iters_out, report)

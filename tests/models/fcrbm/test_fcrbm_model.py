@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import pytest
 import torch
 
@@ -201,3 +203,60 @@ def test_single_gibbs_step_is_mean_field_from_previous_frame(model: FCRBM, batch
     past2 = torch.cat([past[:, 1:], first[:, None].detach()], dim=1)
     second = model.visible_mean(model.hidden_probabilities(first, past2, z), past2, z)
     torch.testing.assert_close(out[:, 1], second.detach())
+
+
+def _companion_by_hand(model: FCRBM, z: torch.Tensor) -> torch.Tensor:
+    """The AR recursion's companion matrix built from the dynamic bias itself."""
+    nd = N * D
+    basis = torch.eye(nd, dtype=torch.float64).reshape(nd, N, D)
+    zero = model.dynamic_biases(torch.zeros(1, N, D, dtype=torch.float64), z[None])[0]
+    lin = model.dynamic_biases(basis, z.expand(nd, C))[0] - zero  # (nd, D): column per input
+    comp = torch.zeros(nd, nd, dtype=torch.float64)
+    comp[: nd - D, D:] = torch.eye(nd - D, dtype=torch.float64)
+    comp[nd - D :] = lin.T
+    return comp
+
+
+def test_companion_matrix_is_the_linear_part_of_the_dynamics(model: FCRBM, batch) -> None:
+    _, _, context = batch
+    comp = model.ar_companion(context)
+    for k in range(B):
+        torch.testing.assert_close(comp[k], _companion_by_hand(model, context[k]))
+
+
+def test_limiting_the_radius_scales_every_eigenvalue_at_every_context(model: FCRBM, batch) -> None:
+    _, _, context = batch
+    with torch.no_grad():
+        model.a_past.mul_(20.0)  # far beyond stability
+    before = torch.linalg.eigvals(model.ar_companion(context))
+    rho = model.limit_ar_radius(context, 0.9)
+    assert rho == pytest.approx(float(before.abs().amax()), rel=1e-6)
+    after = torch.linalg.eigvals(model.ar_companion(context))
+    assert float(after.abs().amax()) == pytest.approx(0.9, rel=1e-6)
+    # Every eigenvalue is multiplied by the same factor 0.9 / rho (sorted by modulus).
+    ratio = after.abs().sort(-1).values / before.abs().sort(-1).values
+    torch.testing.assert_close(ratio, torch.full_like(ratio, 0.9 / rho), rtol=1e-6, atol=1e-6)
+
+
+def test_stable_model_is_left_alone(model: FCRBM, batch) -> None:
+    _, _, context = batch
+    with torch.no_grad():
+        model.a_past.mul_(1e-3)
+    state = {k: v.clone() for k, v in model.state_dict().items()}
+    assert model.limit_ar_radius(context, 0.999) < 0.999
+    for k, v in model.state_dict().items():
+        torch.testing.assert_close(v, state[k])
+
+
+def test_limiting_the_radius_rescales_the_momentum_with_the_weights(model: FCRBM, batch) -> None:
+    v, past, context = batch
+    model = FCRBM(replace(model.config, init_std=0.3))
+    model.train_step(v, past, context, torch.Generator().manual_seed(0))
+    before = model._velocity["a_past"].clone()
+    rho = model.limit_ar_radius(context, 0.5)
+    assert rho > 0.5
+    ratio = model._velocity["a_past"] / before
+    lags = ratio[:, 0].reshape(model.config.order, model.config.visible)
+    # Every lag's momentum is scaled like its weights: by s^k, s = 0.5 / rho, k = N..1.
+    expected = (0.5 / rho) ** torch.arange(model.config.order, 0, -1, dtype=torch.float32)
+    torch.testing.assert_close(lags, expected[:, None].expand_as(lags), rtol=1e-4, atol=1e-6)

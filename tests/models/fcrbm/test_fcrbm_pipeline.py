@@ -11,7 +11,7 @@ import torch
 
 from emotive.core import Motion, Skeleton
 from emotive.core.ops import canonicalize_facing
-from emotive.errors import DataError, RigError
+from emotive.errors import DataError, EmotionError, RigError
 from emotive.models.fcrbm.data import FrameCodec, clip_context, frame_vectors
 from emotive.models.fcrbm.generate import (
     FCRBMDivergedError,
@@ -73,6 +73,62 @@ def test_frames_round_trip_through_the_codec():
     assert np.abs(a - b).max() < 1e-4
     again = FrameCodec.from_dict(json.loads(json.dumps(codec.to_dict())))
     np.testing.assert_allclose(again.encode(frames), codec.encode(frames))
+
+
+def test_joints_near_pi_encode_continuously_relative_to_their_mean_rotation():
+    """A joint posed near 180 degrees (as the Bandai Namco upper legs) has a raw exponential
+    map that flips to the opposite side whenever the angle crosses pi; the codec expresses it
+    relative to the joint's mean rotation, where it is smooth, and decodes it back exactly."""
+    from rigs import RIG
+
+    m = walk(120)
+    leg = [r[0] for r in RIG].index("UpperLeg_L")
+    t = np.arange(m.num_frames) / FPS
+    aa = np.zeros((m.num_frames, 3))
+    aa[:, 0] = np.pi - 0.05 + 0.3 * np.sin(2 * np.pi * 1.5 * t)  # crosses pi every stride
+    from emotive.transforms.np_rotations import quaternion_multiply
+
+    rot = m.rotations.copy()
+    rot[:, leg] = quaternion_multiply(axis_angle_to_quaternion(aa), rot[:, leg])
+    m = m.replace(rotations=rot)
+    frames = frame_vectors(m)
+    raw = frames[:, 4 + 3 * leg: 7 + 3 * leg]
+    assert np.abs(np.diff(raw, axis=0)).max() > 3.0  # the flips the codec must remove
+    codec = FrameCodec.fit([frames], [m])
+    cols = np.isin(codec.keep, np.arange(4 + 3 * leg, 7 + 3 * leg))
+    assert cols.any()
+    x = (codec.encode(frames) * codec.std)[:, cols]  # radians again
+    # At most the walk's own swing plus the added one per frame (0.13 + 0.09 rad).
+    assert np.abs(np.diff(x, axis=0)).max() < 0.25
+    back = codec.decode(codec.encode(frames))
+    a = canonicalize_facing(m).positions_with_end_sites()
+    b = canonicalize_facing(back).positions_with_end_sites()
+    assert np.abs(a - b).max() < 1e-4
+    again = FrameCodec.from_dict(json.loads(json.dumps(codec.to_dict())))
+    np.testing.assert_allclose(again.reference, codec.reference)
+    np.testing.assert_allclose(again.encode(frames), codec.encode(frames), atol=1e-6)
+    # A codec saved before the references existed still loads, relative to the identity.
+    old = codec.to_dict() | {"reference": None}
+    assert FrameCodec.from_dict(old).reference is None
+
+
+def test_joint_axes_moving_less_than_a_degree_are_left_out():
+    from rigs import RIG
+
+    m = walk(120)
+    head = [r[0] for r in RIG].index("Head")
+    rng = np.random.default_rng(0)
+    aa = np.zeros((m.num_frames, 3))
+    aa[:, 2] = np.deg2rad(0.2) * rng.standard_normal(m.num_frames)  # capture noise only
+    from emotive.transforms.np_rotations import quaternion_multiply
+
+    rot = m.rotations.copy()
+    rot[:, head] = quaternion_multiply(axis_angle_to_quaternion(aa), rot[:, head])
+    m = m.replace(rotations=rot)
+    codec = FrameCodec.fit([frame_vectors(m)], [m])
+    cols = set(range(4 + 3 * head, 7 + 3 * head))
+    assert not cols & set(codec.keep.tolist())
+    assert set(codec.keep.tolist()) - cols  # the joints that do move are kept
 
 
 def test_bad_clips_raise():
@@ -179,3 +235,94 @@ def test_settings_file(tmp_path):
     bad.write_text("[train]\npast_noise = -1\n")
     with pytest.raises(ConfigError, match="past_noise"):
         load_fcrbm_settings(bad)
+
+
+@pytest.fixture(scope="module")
+def checkpoint(tmp_path_factory):
+    """A tiny FCRBM trained for one epoch on the synthetic walks."""
+    out = tmp_path_factory.mktemp("fcrbm")
+    config = FCRBMConfig(visible=1, order=3, hidden=16, factors=8, factors_past_visible=8,
+                         factors_past_hidden=8, gibbs=3, init_std=0.1)
+    train_fcrbm(config, FCRBMTrainSettings(epochs=1, batch_size=32, past_noise=0.5),
+                progress=False, out_dir=out, data=synthetic_data(config.order))
+    return out / "last.pt"
+
+
+def invoke_fcrbm(*args: object):
+    from typer.testing import CliRunner
+
+    from emotive.commands.fcrbm import app
+
+    return CliRunner().invoke(app, [*map(str, args)], env={"COLUMNS": "200"})
+
+
+def test_generate_command_writes_bvh_and_preview(checkpoint, tmp_path):
+    from emotive.io.bvh import read_bvh
+
+    out, video = tmp_path / "walk.bvh", tmp_path / "walk.gif"
+    result = invoke_fcrbm("generate", "--model", checkpoint, "--valence", 2.5, "--arousal", 3,
+                          "--seconds", 1, "--out", out, "--preview", video)
+    assert result.exit_code == 0, result.output
+    assert "valence/arousal [2.5, 3.0]" in result.output
+    motion = read_bvh(out)
+    assert motion.num_frames == 30 and np.isfinite(motion.positions).all()
+    assert video.stat().st_size > 0
+    schedule = tmp_path / "s.json"
+    schedule.write_text(json.dumps([{"t": 0, "emotion": "sad"}, {"t": 1, "valence": 3,
+                                                                "arousal": 3}]))
+    result = invoke_fcrbm("generate", "--model", checkpoint, "--schedule", schedule,
+                          "--seconds", 1, "--out", tmp_path / "t.bvh")
+    assert result.exit_code == 0 and " to [" in result.output, result.output
+    result = invoke_fcrbm("generate", "--model", checkpoint, "--emotion", "happy",
+                          "--seconds", 0.5, "--out", tmp_path / "h.bvh")
+    assert result.exit_code == 0, result.output
+
+
+@pytest.mark.parametrize(
+    ("args", "error", "words"),
+    [
+        (["--valence", 2, "--emotion", "sad"], FCRBMInputError, ["exactly one", "--emotion"]),
+        (["--valence", 2], FCRBMInputError, ["both --valence and --arousal"]),
+        ([], FCRBMInputError, ["exactly one"]),
+        (["--valence", "nan", "--arousal", 2], FCRBMInputError, ["valence and arousal"]),
+        (["--valence", 9, "--arousal", 2], FCRBMInputError, ["[0.25, 5]"]),
+        (["--emotion", "bored"], EmotionError, ["bored"]),
+        (["--emotion", "sad", "--model", "missing.pt"], ConfigError, ["missing.pt",
+                                                                    "no such checkpoint"]),
+    ],
+)
+def test_generate_command_errors_write_nothing(checkpoint, tmp_path, args, error, words):
+    args = [a if a != "missing.pt" else tmp_path / "missing.pt" for a in args]
+    if "--model" not in args:
+        args += ["--model", checkpoint]
+    before = sorted(tmp_path.iterdir())
+    result = invoke_fcrbm("generate", *args, "--seconds", 1, "--out", tmp_path / "x.bvh")
+    assert result.exit_code != 0
+    assert isinstance(result.exception, error), result.exception
+    message = str(result.exception)
+    assert "\n" not in message and all(w in message for w in words), message
+    assert sorted(tmp_path.iterdir()) == before
+
+
+def test_generate_command_refuses_a_primer_from_another_rig(checkpoint, tmp_path):
+    from emotive.io.bvh import write_bvh
+
+    m = walk(20)
+    sk = m.skeleton
+    other = Skeleton(tuple(f"{n}_x" for n in sk.names), sk.parents, sk.offsets,
+                     end_site_parents=sk.end_site_parents, end_site_offsets=sk.end_site_offsets)
+    primer = write_bvh(Motion(other, m.rotations, m.positions, FPS), tmp_path / "p.bvh")
+    result = invoke_fcrbm("generate", "--model", checkpoint, "--emotion", "sad", "--primer",
+                          primer, "--seconds", 1, "--out", tmp_path / "x.bvh")
+    assert isinstance(result.exception, FCRBMInputError)
+    assert "model's rig" in str(result.exception)
+    assert not (tmp_path / "x.bvh").exists()
+
+
+def test_train_command_reports_config_errors(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[train]\nmax_ar_radius = 2\n")
+    result = invoke_fcrbm("train", "--config", bad, "--out", tmp_path / "run")
+    assert isinstance(result.exception, ConfigError)
+    assert "max_ar_radius" in str(result.exception)
+    assert not (tmp_path / "run").exists()

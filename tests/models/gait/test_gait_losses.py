@@ -19,6 +19,7 @@ from emotive.models.gait import (
     GaitOutputs,
     GaitRig,
     affective_loss,
+    amplitude_loss,
     foot_contact_loss,
     motion_loss,
     pose_loss,
@@ -282,3 +283,40 @@ class TestRig:
             dataclasses.replace(rig, euler_orders=rig.euler_orders[:-1])
         with pytest.raises(ValueError, match="end sites"):
             dataclasses.replace(rig, end_site_parents=(*rig.end_site_parents[:-1], 99))
+
+
+class TestAmplitude:
+    def test_zero_when_the_spread_matches_even_if_the_poses_differ(self, rig, skeleton):
+        _, pos, root = prediction(skeleton, (2, 6), 30)
+        shifted = pos + torch.tensor([0.1, -0.2, 0.3], dtype=pos.dtype)  # same spread
+        assert float(amplitude_loss(shifted, pos, root[..., 0] + 1.0, root[..., 0], rig)) == (
+            pytest.approx(0.0, abs=1e-12))
+
+    def test_damped_motion_costs_its_lost_spread(self, rig, skeleton):
+        q, local, root = prediction(skeleton, (1, 8), 31)
+        pos = rig_positions(q, local, rig)
+        r = rig.root_index
+        rel = pos - pos[..., r : r + 1, :]
+        damped = pos[..., r : r + 1, :] + rel.mean(1, keepdim=True) + 0.5 * (
+            rel - rel.mean(1, keepdim=True))
+        h = root[..., 0]
+        value = float(amplitude_loss(damped, pos, 0.5 * h, h, rig))
+        expected = 0.5 * (float(rel.std(1).sum()) + float(h.std(1).sum()))
+        assert value == pytest.approx(expected, rel=1e-9)
+
+    def test_only_computed_when_weighted(self, config, rig, skeleton):
+        true_q, pos, true_root = prediction(skeleton, (2, 5), 32)
+        q, _, root = prediction(skeleton, (2, 5), 33)
+        outputs = GaitOutputs(q, q, root)
+        total, terms = GaitLoss(config, rig)(outputs, true_q, true_root, pos)
+        assert "amplitude" not in terms
+        weighted = GaitLoss(dataclasses.replace(config, amplitude_weight=2.5), rig)
+        total_a, terms_a = weighted(outputs, true_q, true_root, pos)
+        assert terms_a["amplitude"] > 0 and "amplitude" in weighted.active_terms
+        assert float(total_a) == pytest.approx(float(total) + 2.5 * terms_a["amplitude"],
+                                               rel=1e-12)
+
+    def test_needs_windows(self, rig):
+        with pytest.raises(ValueError, match="windows"):
+            amplitude_loss(torch.zeros(3, 5, 3), torch.zeros(3, 5, 3), torch.zeros(3),
+                           torch.zeros(3), rig)

@@ -187,3 +187,38 @@ def test_command_reports_config_errors_and_resume_without_checkpoint(tmp_path):
     with pytest.raises(ConfigError, match="no checkpoint to resume"):
         train_gait(CONFIG, SETTINGS, progress=False, out_dir=tmp_path, resume=True,
                    data={"train": None})
+
+
+@pytest.mark.data
+def test_fine_tuning_starts_from_a_checkpoint_with_other_loss_weights(data, tmp_path):
+    base = run(data, tmp_path / "base", replace(SETTINGS, epochs=1))
+    settings = replace(SETTINGS, epochs=1, init_from=str(tmp_path / "base" / "best.pt"),
+                       initial_teacher_forcing=0.0, learning_rate=1e-12)
+    tuned = train_gait(replace(CONFIG, amplitude_weight=2.0), settings, progress=False,
+                       out_dir=tmp_path / "tuned", data=data)
+    # A vanishing learning rate: the tuned weights are the starting checkpoint's.
+    for k, v in base.network.state_dict().items():
+        torch.testing.assert_close(tuned.network.state_dict()[k], v, rtol=0, atol=1e-9)
+    row = tuned.history[0]
+    assert row["teacher_forcing"] == 0.0 and row["train_amplitude"] > 0
+    with pytest.raises(ConfigError, match=r"differs in \['gru_hidden'\]"):
+        train_gait(replace(CONFIG, gru_hidden=12), settings, progress=False,
+                   out_dir=tmp_path / "other", data=data)
+    with pytest.raises(ConfigError, match="not found"):
+        train_gait(CONFIG, replace(settings, init_from=str(tmp_path / "none.pt")),
+                   progress=False, out_dir=tmp_path / "none", data=data)
+
+
+def test_the_committed_model_is_the_fine_tuning_of_the_committed_first_stage():
+    from emotive.models.gait.model import default_checkpoint_path
+
+    config, settings = load_settings(REPO / "configs" / "gait-finetune.toml")
+    assert config.amplitude_weight > 0 and settings.label_balance > 0
+    stage1 = REPO / settings.init_from
+    _, first_ckpt = load_checkpoint(stage1)
+    base_config, base_settings = load_settings(REPO / "configs" / "gait.toml")
+    # Written before the fine-tuning fields existed: those keep their defaults.
+    assert base_config.to_dict() == {**base_config.to_dict(), **first_ckpt["config"]}
+    assert base_settings.to_dict() == {**base_settings.to_dict(), **first_ckpt["train"]}
+    _, ckpt = load_checkpoint(default_checkpoint_path())
+    assert ckpt["config"] == config.to_dict() and ckpt["train"] == settings.to_dict()

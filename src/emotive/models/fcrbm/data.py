@@ -12,13 +12,20 @@ it (:func:`emotive.models.gait.data.fold_into_root`):
 * every other joint's local rotation as an exponential map (3 each; joints that never move
   give constant dimensions).
 
-The first frame of a clip repeats the second frame's step and turn. :class:`FrameCodec` removes
-the dimensions that are constant in the training data (standard deviation under
-:data:`CONSTANT_STD`), standardizes the rest with the training mean and standard deviation and
-keeps everything the way back needs: the rig, the local translations of the joints (their
-training mean: bones do not stretch), the constant values. :meth:`FrameCodec.decode`
-integrates the heading and the ground path from the steps and rebuilds a
-:class:`~emotive.core.motion.Motion`.
+The first frame of a clip repeats the second frame's step and turn. :class:`FrameCodec` first
+expresses every joint's rotation relative to its training mean rotation (the reference, a
+quaternion average): an exponential map is discontinuous at angles of π (the vector flips to
+the opposite side), and on rigs whose rest pose is far from the identity some joints sit near
+π all the time (the upper legs of the Bandai Namco rig: standard deviation 1.7-2.5 rad of the
+raw exponential map, most of it flips); relative to the mean they stay far from π, as Grassia
+(1998) prescribes. It then removes the dimensions that are constant in the training data
+(standard deviation under :data:`CONSTANT_STD`, and for joint rotations under
+:data:`CONSTANT_ROTATION_STD`: standardizing a joint axis that moves less than a degree only
+blows its capture noise up to unit variance), standardizes the rest with the training mean and
+standard deviation and keeps everything the way back needs: the rig, the references, the local
+translations of the joints (their training mean: bones do not stretch), the constant values.
+:meth:`FrameCodec.decode` integrates the heading and the ground path from the steps and
+rebuilds a :class:`~emotive.core.motion.Motion`.
 
 Context (:func:`clip_context`): valence and arousal of the clip's style from
 :data:`emotive.data.emotion.VALENCE_AROUSAL`, on the paper's 1-3 scale (1 low, 2 neutral,
@@ -39,6 +46,10 @@ from emotive.errors import DataError, RigError
 
 #: Dimensions whose training standard deviation is below this are constant and left out.
 CONSTANT_STD = 1e-6
+#: Joint-rotation dimensions (radians, relative to the joint's mean rotation) whose training
+#: standard deviation is below this (one degree) are treated as constant too: the knees' side
+#: axes and the toes of the Bandai Namco rig move 0.1-0.7 degrees, which is capture noise.
+CONSTANT_ROTATION_STD = np.deg2rad(1.0)
 #: Columns of the root motion: sideways step, forward step, turn, height.
 ROOT_COLUMNS = 4
 
@@ -97,6 +108,38 @@ def frame_vectors(motion: Motion) -> np.ndarray:
     )
 
 
+def _rotation_columns(frames: np.ndarray) -> np.ndarray:
+    """``(T, J, 4)`` quaternions of the joint-rotation columns of ``(T, K)`` frames."""
+    from emotive.transforms.np_rotations import axis_angle_to_quaternion
+
+    return axis_angle_to_quaternion(frames[:, ROOT_COLUMNS:].reshape(len(frames), -1, 3))
+
+
+def mean_rotations(frames: Sequence[np.ndarray]) -> np.ndarray:
+    """``(J, 4)`` average rotation of every joint over ``(T, K)`` frames (Markley's average:
+    the principal eigenvector of the sum of ``q qᵀ``, blind to the sign of ``q``)."""
+    from emotive.transforms.np_rotations import quaternion_mean
+
+    return quaternion_mean(np.concatenate([_rotation_columns(f) for f in frames]), axis=0)
+
+
+def _rereference(frames: np.ndarray, reference: np.ndarray, inverse: bool) -> np.ndarray:
+    """Joint rotations of ``(T, K)`` frames made relative to ``reference`` (``q_ref⁻¹ q``), or
+    back (``q_ref q``) with ``inverse``."""
+    from emotive.transforms.np_rotations import (
+        quaternion_conjugate,
+        quaternion_multiply,
+        quaternion_to_axis_angle,
+    )
+
+    ref = np.broadcast_to(reference, (len(frames), *reference.shape))
+    q = _rotation_columns(frames)
+    q = quaternion_multiply(ref if inverse else quaternion_conjugate(ref), q)
+    out = np.array(frames, dtype=np.float64, copy=True)
+    out[:, ROOT_COLUMNS:] = quaternion_to_axis_angle(q).reshape(len(frames), -1)
+    return out
+
+
 def clip_context(style: str, frames: int) -> np.ndarray:
     """``(frames, 2)`` valence and arousal (1-3 scale) of a style, e.g. ``"sad"``.
 
@@ -117,12 +160,15 @@ class FrameCodec:
         keep: ``(D,)`` indices of the kept columns among the ``K``.
         mean: ``(D,)`` training mean of the kept columns.
         std: ``(D,)`` training standard deviation of the kept columns.
-        constant: ``(K,)`` training mean of every column (the value of the left-out ones).
+        constant: ``(K,)`` training mean of every column (the value of the left-out ones),
+            joint rotations relative to ``reference``.
         skeleton: the rig.
         local_positions: ``(J, 3)`` mean local translation of every joint (the root role's
             is replaced by the integrated path).
         mover: the root role joint.
         fps: frame rate.
+        reference: ``(J, 4)`` rotation of every joint that the encoded rotations are relative
+            to (the training mean; the identity in checkpoints made before it existed).
     """
 
     keep: np.ndarray
@@ -133,6 +179,7 @@ class FrameCodec:
     local_positions: np.ndarray
     mover: int
     fps: float
+    reference: np.ndarray | None = None
 
     @classmethod
     def fit(cls, frames: Sequence[np.ndarray], motions: Sequence[Motion]) -> FrameCodec:
@@ -152,13 +199,16 @@ class FrameCodec:
             if m.skeleton.names != first.skeleton.names or m.fps != first.fps:
                 raise DataError(f"{m.metadata.get('name')}: every FCRBM training clip must share "
                                 f"the rig and frame rate of {first.metadata.get('name')}")
-        allf = np.concatenate(frames)
+        reference = mean_rotations(frames)
+        allf = np.concatenate([_rereference(f, reference, False) for f in frames])
         std = allf.std(0)
-        keep = np.flatnonzero(std >= CONSTANT_STD)
+        floor = np.full(len(std), CONSTANT_ROTATION_STD)
+        floor[:ROOT_COLUMNS] = CONSTANT_STD
+        keep = np.flatnonzero(std >= np.maximum(floor, CONSTANT_STD))
         prepared = [_prepare(m) for m in motions]
         positions = np.concatenate([m.positions for m, _ in prepared]).mean(0)
         return cls(keep, allf.mean(0)[keep], std[keep], allf.mean(0), first.skeleton, positions,
-                   prepared[0][1], float(first.fps))
+                   prepared[0][1], float(first.fps), reference)
 
     @property
     def dim(self) -> int:
@@ -167,6 +217,8 @@ class FrameCodec:
 
     def encode(self, frames: np.ndarray) -> np.ndarray:
         """``(T, K)`` frames -> ``(T, D)`` standardized kept columns (float32)."""
+        if self.reference is not None:
+            frames = _rereference(frames, self.reference, False)
         return ((frames[:, self.keep] - self.mean) / self.std).astype(np.float32)
 
     def decode(self, visible: np.ndarray, name: str = "fcrbm") -> Motion:
@@ -181,6 +233,8 @@ class FrameCodec:
         v = np.asarray(visible, dtype=np.float64)
         frames = np.repeat(self.constant[None], len(v), axis=0)
         frames[:, self.keep] = v * self.std + self.mean
+        if self.reference is not None:
+            frames = _rereference(frames, self.reference, True)
         yaw = np.cumsum(frames[:, 2]) - frames[0, 2]
         step = np.stack((frames[:, 0], np.zeros(len(v)), frames[:, 1]), 1)
         # Frame t's step is in the body frame of frame t - 1.
@@ -202,6 +256,7 @@ class FrameCodec:
             "constant": self.constant.tolist(), "skeleton": skeleton_to_dict(self.skeleton),
             "local_positions": self.local_positions.tolist(), "mover": int(self.mover),
             "fps": float(self.fps),
+            "reference": None if self.reference is None else self.reference.tolist(),
         }
 
     @classmethod
@@ -214,7 +269,11 @@ class FrameCodec:
             np.array(values["constant"], dtype=np.float64), skeleton,
             np.array(values["local_positions"], dtype=np.float64), int(values["mover"]),
             float(values["fps"]),
+            None if values.get("reference") is None
+            else np.array(values["reference"], dtype=np.float64),
         )
+        if out.reference is not None and out.reference.shape != (skeleton.num_joints, 4):
+            raise ValueError("the codec's references do not match its rig")
         if out.constant.shape != (ROOT_COLUMNS + 3 * skeleton.num_joints,):
             raise ValueError("the codec does not match its rig")
         return out

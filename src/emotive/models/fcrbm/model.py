@@ -349,6 +349,63 @@ class FCRBM(nn.Module):
                 param.add_(vel)
         return recon_error
 
+    # ------------------------------------------------------------------ stability
+
+    @torch.no_grad()
+    def ar_companion(self, context: Any) -> Tensor:
+        """Companion matrices of the linear autoregressive part at given contexts.
+
+        The dynamic visible bias is linear in the past: ``â = a + Σ_k A_k(z) v_{t-k}`` with
+        ``A_k(z) = Av diag(z·Az) Ap_kᵀ`` for lag ``k = 1..N``. The companion matrix of that
+        recursion has the lags' blocks in its last block row and the shift in the others.
+
+        Args:
+            context: ``(B, C)`` contexts.
+
+        Returns:
+            ``(B, N*D, N*D)`` companion matrices acting on the flattened past (time order).
+        """
+        c = self.config
+        z = self._tensor(context, "context", (None, c.context))
+        nd = c.order * c.visible
+        blocks = torch.einsum("pf,bf,df->bdp", self.a_past, z @ self.a_ctx, self.a_vis)
+        comp = torch.zeros(z.shape[0], nd, nd, dtype=blocks.dtype, device=blocks.device)
+        comp[:, : nd - c.visible, c.visible :] = torch.eye(nd - c.visible)
+        comp[:, nd - c.visible :, :] = blocks
+        return comp
+
+    @torch.no_grad()
+    def ar_spectral_radius(self, context: Any) -> Tensor:
+        """``(B,)`` spectral radius of :meth:`ar_companion` at each context: below 1, the
+        linear part of the dynamics is stable there."""
+        return torch.linalg.eigvals(self.ar_companion(context).double()).abs().amax(-1).float()
+
+    @torch.no_grad()
+    def limit_ar_radius(self, contexts: Any, radius: float) -> float:
+        """Scale the autoregressive weights so that their spectral radius is at most
+        ``radius`` at every given context; return the largest radius before scaling.
+
+        Multiplying lag ``k``'s weights by ``s^k`` multiplies every eigenvalue of the companion
+        matrix by ``s`` exactly, at every context at once (the context gating is shared by
+        all lags), so one scaling with ``s = radius / max radius`` suffices. The hidden units'
+        contribution to the next frame is bounded (sigmoid outputs), so a stable linear part
+        bounds the whole generated sequence.
+
+        Args:
+            contexts: ``(B, C)`` contexts that must be stable.
+            radius: the bound, in ``(0, 1]``.
+        """
+        rho = float(self.ar_spectral_radius(contexts).max())
+        if rho > radius:
+            c = self.config
+            lags = torch.arange(c.order, 0, -1, dtype=self.a_past.dtype, device=self.a_past.device)
+            scale = (radius / rho) ** lags
+            scale = scale.repeat_interleave(c.visible)[:, None]
+            self.a_past.mul_(scale)
+            if "a_past" in self._velocity:  # momentum lives in the same coordinates
+                self._velocity["a_past"] = self._velocity["a_past"] * scale
+        return rho
+
     # ------------------------------------------------------------------ generation
 
     @torch.no_grad()

@@ -35,7 +35,7 @@ _POSITIVE_INTS = (
 )
 _WEIGHTS = (
     "motion_weight", "pose_weight", "affective_weight", "root_weight", "foot_contact_weight",
-    "versor_weight",
+    "versor_weight", "amplitude_weight",
 )
 
 
@@ -67,6 +67,12 @@ class GaitConfig(DictConfig):
         versor_weight: ``lambda_versor`` of the unit-norm penalty inside the motion loss. The
             paper gives no value; 0.01 is QuaterNet's (Pavllo et al. 2018), on which the paper
             builds.
+        amplitude_weight: weight of the amplitude term, an extension of the paper's loss
+            (0: off, the paper's equation 13): the L1 distance between the predicted and true
+            standard deviation over each training window of every root-relative joint
+            position and of the root height. The autoregressive rollout regresses towards the
+            mean pose and damps every oscillation (the generated hip bounce was half the real
+            one for every emotion); this term asks for the data's amplitude.
         use_affective: read the 18 affective features and train with the affective loss.
             ``False`` is the paper's first ablation (section 5.6): ``FC_enc1`` reads only
             ``m`` and the affective loss is dropped.
@@ -92,6 +98,7 @@ class GaitConfig(DictConfig):
     root_weight: float = 1.0
     foot_contact_weight: float = 1.0
     versor_weight: float = 0.01
+    amplitude_weight: float = 0.0
     use_affective: bool = True
     use_root_loss: bool = True
 

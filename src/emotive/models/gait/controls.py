@@ -115,12 +115,10 @@ class GaitControls:
 
 
 def mean_rotations(q: np.ndarray) -> np.ndarray:
-    """Per-joint mean of ``(N, J, 4)`` unit quaternions: sign-aligned to the first, averaged
-    and normalized (a good mean for rotations within a hemisphere). Returns ``(J, 4)``."""
-    q = np.asarray(q, dtype=np.float64)
-    aligned = q * np.where((q * q[:1]).sum(-1, keepdims=True) < 0, -1.0, 1.0)
-    mean = aligned.sum(0)
-    return mean / np.linalg.norm(mean, axis=-1, keepdims=True)
+    """Per-joint mean of ``(N, J, 4)`` unit quaternions (sign-blind). Returns ``(J, 4)``."""
+    from emotive.transforms.np_rotations import quaternion_mean
+
+    return quaternion_mean(q, axis=0)
 
 
 def gait_controls(data: Any) -> GaitControls:

@@ -16,6 +16,9 @@ then keep their meaning across settings).
 * root (11): ``|[h, s, delta] - [h^, s^, delta^]|_1``.
 * foot contact (12): ``|[lh, lt, rh, rt] - [lh^, lt^, rh^, rt^]|_1`` over heel (ankle) and
   toe positions.
+* amplitude (an extension, weight 0 by default): ``sum_p |std_t(X_p - X_0) - std_t(X^_p - X^_0)|
+  + |std_t(h) - std_t(h^)|`` over the frames ``t`` of each window, all joints and end sites
+  ``p``; it counters the damping of oscillations in free-running rollouts.
 * total (13): the weighted sum, weights from :class:`~emotive.models.gait.config.GaitConfig`.
 """
 
@@ -41,7 +44,8 @@ from emotive.transforms.rotations import (
 )
 
 #: Names of the loss terms, in the order of equation (13).
-LOSS_TERMS: tuple[str, ...] = ("motion", "pose", "affective", "root", "foot_contact")
+LOSS_TERMS: tuple[str, ...] = ("motion", "pose", "affective", "root", "foot_contact",
+                                "amplitude")
 
 
 @dataclass(frozen=True, eq=False)
@@ -201,6 +205,33 @@ def _foot_term(pred_pos: torch.Tensor, true_pos: torch.Tensor, rig: GaitRig) -> 
     return _frame_mean(diff.abs().sum((-1, -2, -3)))
 
 
+def amplitude_loss(pred_pos: torch.Tensor, true_pos: torch.Tensor, pred_height: torch.Tensor,
+                   true_height: torch.Tensor, rig: GaitRig) -> torch.Tensor:
+    """The amplitude term: how far the prediction's movement range within a window is from
+    the truth's.
+
+    Args:
+        pred_pos: ``(B, T, J + E, 3)`` predicted positions of joints and end sites.
+        true_pos: ``(B, T, J + E, 3)`` true positions.
+        pred_height: ``(B, T)`` predicted root height ``h``.
+        true_height: ``(B, T)`` true root height.
+        rig: the rig.
+
+    Returns:
+        Scalar tensor (metres): per window the sum over points and axes of the absolute
+        difference of standard deviations over ``T``, plus that of the root height, averaged
+        over windows.
+    """
+    if pred_pos.ndim != 4 or pred_pos.shape[1] < 2:
+        raise ValueError(f"the amplitude term needs (B, T, P, 3) windows of T >= 2 frames, got "
+                         f"{tuple(pred_pos.shape)}")
+    r = rig.root_index
+    spread = [(x - x[..., r : r + 1, :]).std(1) for x in (pred_pos, true_pos)]
+    joints = (spread[0] - spread[1]).abs().sum((-1, -2))
+    height = (pred_height.std(1) - true_height.std(1)).abs()
+    return (joints + height).mean()
+
+
 def pose_loss(
     pred_rotations: torch.Tensor,
     true_rotations: torch.Tensor,
@@ -312,7 +343,8 @@ def foot_contact_loss(
 
 
 class GaitLoss:
-    """Equation (13): the weighted sum of the five terms, with the config's weights and switches.
+    """Equation (13): the weighted sum of the five terms (and the amplitude extension when its
+    weight is positive), with the config's weights and switches.
 
     With ``use_affective=False`` the affective term is not computed; with
     ``use_root_loss=False`` the root term is not. Forward kinematics runs once per call for
@@ -340,6 +372,7 @@ class GaitLoss:
             "affective": config.affective_weight,
             "root": config.root_weight,
             "foot_contact": config.foot_contact_weight,
+            "amplitude": config.amplitude_weight,
         }
 
     @property
@@ -348,6 +381,8 @@ class GaitLoss:
         off = {"affective"} if not self.config.use_affective else set()
         if not self.config.use_root_loss:
             off.add("root")
+        if not self.config.amplitude_weight > 0:
+            off.add("amplitude")
         return tuple(t for t in LOSS_TERMS if t not in off)
 
     def __call__(
@@ -386,6 +421,9 @@ class GaitLoss:
         if self.config.use_root_loss:
             terms["root"] = root_loss(outputs.root, true_root)
         terms["foot_contact"] = _foot_term(pred_pos, true_pos, rig)
+        if "amplitude" in self.active_terms:
+            terms["amplitude"] = amplitude_loss(pred_pos, true_pos, outputs.root[..., 0],
+                                                true_root[..., 0], rig)
         total = sum(
             (self.weights[name] * value for name, value in terms.items()),
             start=torch.zeros((), dtype=pred_pos.dtype, device=pred_pos.device),

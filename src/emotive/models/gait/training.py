@@ -94,6 +94,15 @@ class GaitTrainSettings:
         datasets: registry names of the data sets (locomotion clips only).
         split_seed: seed of the split by clip.
         max_clips: for quick runs, at most this many clips per split and data set (0: all).
+        initial_teacher_forcing: teacher-forcing ratio of the first epoch; the ratio of epoch
+            ``e`` is ``initial_teacher_forcing * teacher_forcing_decay ** e``.
+        label_balance: exponent ``a`` of label-balanced sampling: each epoch draws as many
+            windows as there are, with replacement, window ``i`` with probability
+            proportional to ``n_i ** -a``, ``n_i`` the windows of its dominant label (0: every
+            window once, in random order, as the paper).
+        init_from: a gait checkpoint whose weights start the training (fine-tuning); its
+            model must have the same labels and sizes (loss weights may differ). ``""``:
+            random initialization.
     """
 
     epochs: int = 500
@@ -107,8 +116,14 @@ class GaitTrainSettings:
     datasets: tuple[str, ...] = DEFAULT_DATASETS
     split_seed: int = 0
     max_clips: int = 0
+    initial_teacher_forcing: float = 1.0
+    label_balance: float = 0.0
+    init_from: str = ""
 
     def __post_init__(self) -> None:
+        if not isinstance(self.init_from, str):
+            raise ValueError(f"init_from must be a checkpoint path or \"\", got "
+                             f"{self.init_from!r}")
         for name, low in (("epochs", 1), ("batch_size", 1), ("window", 1), ("stride", 1),
                           ("split_seed", 0), ("max_clips", 0)):
             value = getattr(self, name)
@@ -119,10 +134,12 @@ class GaitTrainSettings:
             if isinstance(value, bool) or not isinstance(value, int | float) or not value > 0:
                 raise ValueError(f"{name} must be a positive number, got {value!r}")
             object.__setattr__(self, name, float(value))
-        value = self.val_teacher_forcing
-        if isinstance(value, bool) or not isinstance(value, int | float) or not 0 <= value <= 1:
-            raise ValueError(f"val_teacher_forcing must be a number in [0, 1], got {value!r}")
-        object.__setattr__(self, "val_teacher_forcing", float(value))
+        for name in ("val_teacher_forcing", "initial_teacher_forcing", "label_balance"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int | float) or not (
+                    0 <= value <= 1):
+                raise ValueError(f"{name} must be a number in [0, 1], got {value!r}")
+            object.__setattr__(self, name, float(value))
         if isinstance(self.datasets, str) or not self.datasets or not all(
             isinstance(d, str) for d in self.datasets
         ):
@@ -281,6 +298,18 @@ def rollout(network: GaitNetwork, batch: GaitBatch, mask: np.ndarray, rig: GaitR
     return GaitOutputs(*(torch.cat(xs, 1) for xs in zip(*parts, strict=True)))
 
 
+def epoch_order(data: GaitData, settings: GaitTrainSettings, rng: np.random.Generator
+                ) -> np.ndarray:
+    """``(N,)`` window indices of one epoch (see ``label_balance``)."""
+    n = len(data)
+    if not settings.label_balance:
+        return rng.permutation(n)
+    label = data.emotions[data.window_clip].argmax(1)
+    counts = np.bincount(label)
+    weight = counts[label].astype(np.float64) ** -settings.label_balance
+    return rng.choice(n, size=n, replace=True, p=weight / weight.sum())
+
+
 def _batches(n: int, size: int, order: np.ndarray | None = None) -> list[np.ndarray]:
     idx = np.arange(n) if order is None else order
     return [idx[i:i + size] for i in range(0, n, size)]
@@ -383,6 +412,28 @@ def load_checkpoint(path: str | Path) -> tuple[GaitNetwork, dict[str, Any]]:
     return network, ckpt
 
 
+#: Config fields a fine-tuning run may change from its starting checkpoint.
+_LOSS_FIELDS = frozenset({"motion_weight", "pose_weight", "affective_weight", "root_weight",
+                          "foot_contact_weight", "versor_weight", "amplitude_weight",
+                          "use_root_loss"})
+
+
+def _initialize_from(network: GaitNetwork, path: str) -> None:
+    """Copy the weights of a checkpoint into ``network`` (see ``init_from``).
+
+    Raises:
+        ConfigError: the checkpoint is unusable or its model differs beyond loss settings.
+    """
+    start, _ = load_checkpoint(path)
+    ours = {k: v for k, v in network.config.to_dict().items() if k not in _LOSS_FIELDS}
+    theirs = {k: v for k, v in start.config.to_dict().items() if k not in _LOSS_FIELDS}
+    differ = sorted(k for k in ours if ours[k] != theirs.get(k))
+    if differ:
+        raise ConfigError(f"init_from {path}: its model differs in {differ}; fine-tuning "
+                          "needs the same labels and sizes")
+    network.load_state_dict(start.state_dict())
+
+
 def train_gait(
     config: GaitConfig,
     settings: GaitTrainSettings,
@@ -431,6 +482,8 @@ def train_gait(
     rig = GaitRig.from_skeleton(train.skeleton)
     controls = gait_controls(train).to_dict()
     loss_fn = GaitLoss(config, rig)
+    if settings.init_from and not resume:
+        _initialize_from(network, settings.init_from)
     optimizer = torch.optim.Adam(network.parameters(), lr=settings.learning_rate)
     history: list[dict[str, float]] = []
     best_val = math.inf
@@ -476,7 +529,7 @@ def train_gait(
                 epoch_rng = _rng_state(rng)
                 began = time.perf_counter()
                 lr = settings.learning_rate * settings.lr_decay**epoch
-                ratio = settings.teacher_forcing_decay**epoch
+                ratio = settings.initial_teacher_forcing * settings.teacher_forcing_decay**epoch
                 for group in optimizer.param_groups:
                     group["lr"] = lr
                 network.train()
@@ -484,7 +537,7 @@ def train_gait(
                 seen = 0
                 bars.reset(batch_task, total=n_batches)
                 for k, idx in enumerate(_batches(len(train), settings.batch_size,
-                                                 rng.permutation(len(train)))):
+                                                 epoch_order(train, settings, rng))):
                     batch = train.batch(idx)
                     outputs = rollout(network, batch,
                                       teacher_forcing_mask(train.length, ratio, rng), rig)

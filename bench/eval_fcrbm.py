@@ -1,0 +1,251 @@
+"""Evaluation of the valence/arousal FCRBM (issue 6, section 3).
+
+Usage: ``python bench/eval_fcrbm.py [--checkpoint PATH] [--seeds 3] [--seconds 20]
+[--long-seconds 300] [--out bench/results/fcrbm-eval.json]``. Needs the data for the real
+references (``EMOTIVE_DATA`` or ``../shared/data``).
+
+* **control**: root speed, joint speed (relative to the root) and step frequency of motion
+  generated along each axis (arousal 1, 1.5, ..., 3.5 at valence 2; valence likewise at
+  arousal 2), ``--seeds`` samples of ``--seconds`` each, with whether each measure rises
+  monotonically over 1, 2, 3, 3.5; beside them the same measures on the real walks of the data
+  sets grouped by their arousal or valence (the training data's own trend).
+* **emotion**: motion generated at the valence/arousal of happy, sad, angry and neutral, judged
+  by the evaluation suite's classifier (its emotion suite): window accuracy against the
+  classifier's accuracy on real held-out walks; and the affect suite's Fréchet distance of the
+  26 affective and movement features to real walks of the same emotion.
+* **transition**: every ordered pair of the four emotions, 10 s each side with a one-second
+  linear change, through the transition suite (jerk against the real data's windowed jerk,
+  perceived emotion before and after), with the root speed per second through the change.
+* **stability**: ``--long-seconds`` of generation per emotion through the long-run suite
+  (collapse and explosion against real energy).
+* **speed**: generated frames per second for 1 and 20 agents in one batch (real time for 20
+  agents at 30 fps is 600 frames per second).
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+
+from common import machine_info, write_record  # noqa: E402
+
+EMOTIONS = ("happy", "sad", "angry", "neutral")
+AXIS_VALUES = (1.0, 1.5, 2.0, 2.5, 3.0, 3.5)
+MONOTONIC_AT = (1.0, 2.0, 3.0, 3.5)
+
+
+def measures(motion) -> dict[str, float]:
+    """Root speed and joint speed relative to the root (m/s) and steps per second."""
+    from emotive.core.roles import resolve_roles
+    from emotive.features.contacts import foot_contacts, foot_strikes
+
+    roles = resolve_roles(motion.skeleton)
+    p = motion.positions_with_end_sites()
+    root = p[:, roles.index["root"]]
+    ground = np.linalg.norm(np.diff(root[:, [0, 2]], axis=0), axis=1) * motion.fps
+    rel = p - root[:, None]
+    joints = np.linalg.norm(np.diff(rel, axis=0), axis=2).mean(1) * motion.fps
+    strikes = foot_strikes(foot_contacts(p, roles, motion.fps)).sum()
+    return {"root_speed": float(ground.mean()), "joint_speed": float(joints.mean()),
+            "step_frequency": float(strikes / motion.duration)}
+
+
+def real_trend() -> dict:
+    """The measures of real walks grouped by their style's arousal and valence (1-3 scale,
+    rounded to the nearest half)."""
+    from emotive.data.clips import load_clips
+    from emotive.data.emotion import VALENCE_AROUSAL, style_to_label
+
+    groups: dict[str, dict[float, list[dict]]] = {"arousal": {}, "valence": {}}
+    for name in ("bandai-namco-1", "bandai-namco-2-locomotion"):
+        for clip in load_clips(name, contents=("walk",)):
+            point = VALENCE_AROUSAL.get(style_to_label(clip.style))
+            if point is None or clip.motion.duration < 2.0:
+                continue
+            for axis, value in (("valence", point.valence), ("arousal", point.arousal)):
+                key = round(2 * (2.0 + value)) / 2
+                groups[axis].setdefault(key, []).append(measures(clip.motion))
+    return {axis: {str(k): {m: float(np.mean([r[m] for r in rows])) for m in rows[0]}
+                   | {"clips": len(rows)}
+                   for k, rows in sorted(table.items())}
+            for axis, table in groups.items()}
+
+
+def control(model, seeds: int, seconds: float) -> dict:
+    """Measures along the arousal and valence axes (the other held at 2)."""
+    from emotive.models.fcrbm.generate import constant_context, generate_motion
+
+    frames = round(seconds * model.fps)
+    out = {}
+    for axis in ("arousal", "valence"):
+        rows = {}
+        for value in AXIS_VALUES:
+            va = (2.0, value) if axis == "arousal" else (value, 2.0)
+            samples = [measures(generate_motion(model, constant_context(*va, frames),
+                                                seed=s)[0]) for s in range(seeds)]
+            rows[str(value)] = {m: float(np.mean([r[m] for r in samples])) for m in samples[0]}
+        monotonic = {m: bool(all(rows[str(b)][m] > rows[str(a)][m]
+                                 for a, b in itertools.pairwise(MONOTONIC_AT)))
+                     for m in rows[str(AXIS_VALUES[0])]}
+        out[axis] = {"values": rows, "monotonic_1_2_3_3.5": monotonic}
+        print(f"{axis}: " + "; ".join(
+            f"{v}: root {r['root_speed']:.2f} joints {r['joint_speed']:.2f} steps "
+            f"{r['step_frequency']:.2f}" for v, r in rows.items()) + f"  monotonic {monotonic}")
+    return out
+
+
+def _item(name, motion, context_emotions, labels):
+    from emotive.eval.sources import EvaluatedMotion
+
+    return EvaluatedMotion(name, motion, context_emotions, labels)
+
+
+def emotions_and_transitions(model, seeds: int, seconds: float, long_seconds: float) -> dict:
+    """The emotion, affect, transition and long-run suites on generated motion."""
+    from emotive.data.emotion import Emotion, EmotionSchedule
+    from emotive.eval.classifier import load_default_classifier
+    from emotive.eval.suites import (
+        affect_suite,
+        emotion_suite,
+        longrun_suite,
+        real_reference,
+        transition_suite,
+    )
+    from emotive.models.fcrbm.generate import (
+        constant_context,
+        emotion_context,
+        generate_motion,
+        schedule_context,
+    )
+
+    classifier = load_default_classifier()
+    labels = classifier.labels
+    reference = real_reference(labels)
+    frames = round(seconds * model.fps)
+    singles = []
+    for emotion, s in itertools.product(EMOTIONS, range(seeds)):
+        motion, _ = generate_motion(model, constant_context(*emotion_context(emotion), frames),
+                                    seed=s, name=f"{emotion}-{s}")
+        intended = np.repeat(Emotion.one_hot(emotion, labels).weights[None], motion.num_frames, 0)
+        singles.append(_item(f"{emotion}-{s}", motion, intended, labels))
+    out = {"emotion": emotion_suite(singles, classifier),
+           "affect": affect_suite(singles, reference)}
+    e = out["emotion"]
+    print(f"perceived emotion: window accuracy {e['window_accuracy']:.3f}, real "
+          f"{e['real_window_accuracy']:.3f} (share {e['share_of_real_accuracy']:.2f}); "
+          f"confusion {e['confusion']} over {e['labels']}")
+    for row in out["affect"]["labels"]:
+        print(f"affect {row['label']}: Frechet to real {row.get('frechet_to_real', 'n/a'):.3g} "
+              f"(real train to real {row.get('frechet_real_train_to_real', float('nan')):.3g})")
+
+    import json
+    import tempfile
+
+    from emotive.core.ops import crop
+
+    transitions = []
+    half = 0.5 * seconds
+    for start, end in itertools.permutations(EMOTIONS, 2):
+        keys = [{"t": 0.0, "emotion": start}, {"t": half - 0.5, "emotion": start},
+                {"t": half + 0.5, "emotion": end}]
+        with tempfile.TemporaryDirectory() as tmp:
+            path = Path(tmp) / "schedule.json"
+            path.write_text(json.dumps(keys))
+            context = schedule_context(path, frames, model.fps)
+        motion, _ = generate_motion(model, context, name=f"{start}-to-{end}")
+        intended = EmotionSchedule.from_keyframes(keys, labels).sample(
+            model.fps, num_frames=motion.num_frames)
+        item = _item(f"{start}-to-{end}", motion, intended, labels)
+        transitions.append(item)
+    out["transition"] = transition_suite(transitions, classifier, reference)
+    for row, item in zip(out["transition"]["items"], transitions, strict=True):
+        per_second = [measures(crop(item.motion, a, a + round(model.fps)))["root_speed"]
+                      for a in range(0, item.motion.num_frames - round(model.fps) + 1,
+                                     round(model.fps))]
+        row["root_speed_per_second"] = per_second
+        print(f"transition {row['name']}: smooth {row.get('smooth')}, max jerk percentile "
+              f"{max(row.get('jerk_percentile', [float('nan')])):.1f}, perceived "
+              f"{row['initial_perceived']} -> {row['final_perceived']}, root speed per second "
+              f"{np.round(per_second, 2).tolist()}")
+
+    long_frames = round(long_seconds * model.fps)
+    context = np.stack([constant_context(*emotion_context(e), long_frames) for e in EMOTIONS], 1)
+    began = time.perf_counter()
+    _, frames_std = generate_motion(model, context, seed=0)
+    long_items = []
+    for k, emotion in enumerate(EMOTIONS):
+        motion = model.codec.decode(frames_std[k], f"long-{emotion}")
+        intended = np.repeat(Emotion.one_hot(emotion, labels).weights[None], motion.num_frames, 0)
+        long_items.append(_item(f"long-{emotion}", motion, intended, labels))
+    out["stability"] = longrun_suite(long_items, reference)
+    out["stability"]["generation_seconds"] = time.perf_counter() - began
+    for row in out["stability"]["items"]:
+        print(f"long run {row['name']} ({long_seconds:.0f} s): stable {row['stable']}, collapsed "
+              f"at {row['collapsed_at']}, exploded at {row['exploded_at']}, share of seconds in "
+              f"the real energy band {row.get('share_in_real_band', float('nan')):.2f}")
+    return out
+
+
+def speed(model, seconds: float = 10.0) -> dict:
+    """Generated frames per second for 1 and 20 agents in one batch (medians of 3)."""
+    from emotive.models.fcrbm.generate import constant_context, generate_motion
+
+    frames = round(seconds * model.fps)
+    out = {}
+    for agents in (1, 20):
+        context = np.stack([constant_context(2.0, 2.0, frames)] * agents, 1)
+        times = []
+        for _ in range(3):
+            began = time.perf_counter()
+            generate_motion(model, context, seed=0)
+            times.append(time.perf_counter() - began)
+        rate = agents * frames / float(np.median(times))
+        out[str(agents)] = {"agent_frames_per_second": rate,
+                            "real_time_factor": rate / (agents * model.fps)}
+        print(f"speed, {agents} agents: {rate:,.0f} agent-frames/s, "
+              f"{rate / (agents * model.fps):.1f}x real time")
+    return out
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--checkpoint", type=Path, default=None)
+    parser.add_argument("--seeds", type=int, default=3)
+    parser.add_argument("--seconds", type=float, default=20.0)
+    parser.add_argument("--long-seconds", type=float, default=300.0)
+    parser.add_argument("--part", choices=("all", "control", "suites", "speed"), default="all")
+    parser.add_argument("--out", type=Path, default=HERE / "results" / "fcrbm-eval.json")
+    args = parser.parse_args()
+    torch.set_num_threads(1)
+
+    from emotive.models.fcrbm.generate import load_fcrbm_model
+
+    model = load_fcrbm_model(args.checkpoint)
+    record: dict = {"machine": machine_info(), "date": time.strftime("%Y-%m-%d %H:%M"),
+                    "checkpoint": str(args.checkpoint or "built-in")}
+    if args.part in ("all", "control"):
+        record["control"] = control(model, args.seeds, args.seconds)
+        record["real_trend"] = real_trend()
+        for axis, table in record["real_trend"].items():
+            print(f"real walks by {axis}: " + "; ".join(
+                f"{k}: root {r['root_speed']:.2f} joints {r['joint_speed']:.2f} steps "
+                f"{r['step_frequency']:.2f} ({r['clips']} clips)" for k, r in table.items()))
+    if args.part in ("all", "suites"):
+        record["suites"] = emotions_and_transitions(model, args.seeds, args.seconds,
+                                                    args.long_seconds)
+    if args.part in ("all", "speed"):
+        record["speed"] = speed(model)
+    write_record(args.out, record)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,129 @@
+"""Plain NumPy rotation kernels of the streaming encoder and decoder.
+
+:mod:`emotive.transforms.np_rotations` wraps the torch kernels of
+:mod:`emotive.transforms.rotations`; each call converts arrays to tensors and back, which costs
+more than the arithmetic on the few quaternions of one streamed frame. These are the same
+formulas (same conventions: ``(w, x, y, z)``, Hamilton product, ``+Y`` up) on NumPy arrays;
+``tests/models/mar/test_mar_representation.py`` checks them against the torch kernels.
+:class:`FrameFK` is :class:`emotive.transforms.kinematics.PoseFK` for NumPy.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+_EPS = 1e-12
+#: Conjugation signs of a ``(w, x, y, z)`` quaternion.
+CONJUGATE = np.array([1.0, -1.0, -1.0, -1.0])
+
+
+def qnormalize(q: np.ndarray) -> np.ndarray:
+    """``(..., 4)`` quaternions scaled to unit norm (zero quaternions become identity)."""
+    norm = np.sqrt((q * q).sum(-1, keepdims=True))
+    unit = q / np.maximum(norm, _EPS)
+    if np.all(norm > _EPS):
+        return unit
+    identity = np.zeros_like(q)
+    identity[..., 0] = 1.0
+    return np.where(norm > _EPS, unit, identity)
+
+
+def qmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton product ``a * b`` of ``(..., 4)`` quaternions (``b`` first, then ``a``)."""
+    aw, ax, ay, az = np.moveaxis(np.asarray(a), -1, 0)
+    bw, bx, by, bz = np.moveaxis(np.asarray(b), -1, 0)
+    return np.stack((aw * bw - ax * bx - ay * by - az * bz,
+                     aw * bx + ax * bw + ay * bz - az * by,
+                     aw * by - ax * bz + ay * bw + az * bx,
+                     aw * bz + ax * by - ay * bx + az * bw), -1)
+
+
+def qapply(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``(..., 3)`` vectors ``v`` rotated by unit quaternions ``q`` ``(..., 4)``."""
+    w, u = q[..., :1], q[..., 1:]
+    uv = np.cross(u, v)
+    return v + 2.0 * (w * uv + np.cross(u, uv))
+
+
+def qmatrix(q: np.ndarray) -> np.ndarray:
+    """``(..., 3, 3)`` rotation matrices of ``(..., 4)`` quaternions (normalized first)."""
+    w, x, y, z = np.moveaxis(qnormalize(q), -1, 0)
+    m = np.stack((1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
+                  2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
+                  2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)), -1)
+    return m.reshape(*q.shape[:-1], 3, 3)
+
+
+def expmap_to_quat(v: np.ndarray) -> np.ndarray:
+    """Exponential map: ``(..., 3)`` axis-angle vectors to ``(..., 4)`` unit quaternions."""
+    angle = np.sqrt((v * v).sum(-1, keepdims=True))
+    half = 0.5 * angle
+    small = angle < 1e-4
+    k = np.where(small, 0.5 - angle * angle / 48.0, np.sin(half) / np.where(small, 1.0, angle))
+    return np.concatenate((np.cos(half), v * k), -1)
+
+
+def quat_to_expmap(q: np.ndarray) -> np.ndarray:
+    """Logarithmic map: ``(..., 4)`` quaternions to ``(..., 3)`` axis-angle, angle in [0, pi]."""
+    q = qnormalize(q)
+    q = np.where(q[..., :1] < 0, -q, q)
+    sin_half = np.sqrt((q[..., 1:] ** 2).sum(-1, keepdims=True))
+    half = np.arctan2(sin_half, q[..., :1])
+    small = sin_half < 1e-6
+    k = np.where(small, 2.0 / np.maximum(q[..., :1], _EPS),
+                 2.0 * half / np.where(small, 1.0, sin_half))
+    return q[..., 1:] * k
+
+
+def yaw_quat(angle: np.ndarray) -> np.ndarray:
+    """Rotations about ``+Y``: ``(...,)`` radians to ``(..., 4)`` quaternions."""
+    half = 0.5 * np.asarray(angle, dtype=np.float64)
+    zero = np.zeros_like(half)
+    return np.stack((np.cos(half), zero, np.sin(half), zero), -1)
+
+
+class FrameFK:
+    """World positions of joints and end sites of one rig with fixed offsets (NumPy).
+
+    Args:
+        parents: ``J`` parent indices in topological order.
+        offsets: ``(J, 3)`` local translations.
+        end_site_parents: ``E`` joints the end sites hang from.
+        end_site_offsets: ``(E, 3)`` end-site offsets.
+    """
+
+    def __init__(self, parents: Sequence[int], offsets: np.ndarray,
+                 end_site_parents: Sequence[int] = (),
+                 end_site_offsets: np.ndarray | None = None) -> None:
+        from emotive.transforms.kinematics import depth_levels
+
+        parents = np.asarray(parents, dtype=np.int64)
+        self.levels = [np.array(level, dtype=np.int64) for level in depth_levels(parents)]
+        self.parents = [parents[level] for level in self.levels]
+        self.offsets = np.asarray(offsets, dtype=np.float64)[..., None]
+        self.num_joints = len(parents)
+        self.end_parents = np.asarray(end_site_parents, dtype=np.int64)
+        ends = np.zeros((0, 3)) if end_site_offsets is None else np.asarray(end_site_offsets)
+        self.end_offsets = ends.reshape(-1, 3).astype(np.float64)[..., None]
+
+    def __call__(self, rotations: np.ndarray) -> np.ndarray:
+        """``(B, J + E, 3)`` world positions of ``(B, J, 4)`` local quaternions."""
+        local = qmatrix(rotations)
+        batch = rotations.shape[0]
+        world_r = np.empty((batch, self.num_joints, 3, 3))
+        world_x = np.empty((batch, self.num_joints, 3, 1))
+        for level, par in zip(self.levels, self.parents, strict=True):
+            if par[0] < 0:
+                world_r[:, level] = local[:, level]
+                world_x[:, level] = self.offsets[level]
+            else:
+                pr = world_r[:, par]
+                world_r[:, level] = pr @ local[:, level]
+                world_x[:, level] = pr @ self.offsets[level] + world_x[:, par]
+        if len(self.end_parents):
+            ends = (world_r[:, self.end_parents] @ self.end_offsets
+                    + world_x[:, self.end_parents])
+            world_x = np.concatenate((world_x, ends), 1)
+        return world_x[..., 0]

@@ -1,0 +1,362 @@
+"""Online style transfer: push an input frame, get an output frame (paper sections 5 and 6).
+
+:class:`StyleTransfer` is the streaming API. Each :meth:`~StyleTransfer.push` encodes the frame
+(:mod:`~emotive.models.mar.representation`), searches the neighbours of its window in every
+allowed class (:mod:`~emotive.models.mar.search`), predicts the output pose and timing with
+the local mixture of autoregressive models (:mod:`~emotive.models.mar.regression`), votes the
+footplants among the lower-body neighbours and decodes the pose onto the input's rig. The
+output style is a weight vector over the database's styles and may change at any frame
+(:meth:`~StyleTransfer.set_style`). Each output frame carries its *output time*, in input
+frames: the output style's own timing, so a sad walk takes longer than its neutral input.
+
+:func:`transfer_motion` runs a whole clip through the stream and finishes it offline: output
+resampled to the input frame rate at its output times, footplant likelihoods smoothed with a
+Gaussian, planted feet pinned by IK (:func:`emotive.ik.pin_feet`), and, for an input rig other
+than the database's, retargeting there and back (:mod:`~emotive.models.mar.retarget`).
+
+Legend: ``T`` frames, ``J`` joints, ``D`` pose dimensions, ``S`` styles, ``P`` points.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.ndimage import gaussian_filter1d
+
+from emotive.core.motion import Motion
+from emotive.data.emotion import Emotion, EmotionSchedule
+from emotive.errors import EmotionError
+from emotive.models.mar.config import TransferError
+from emotive.models.mar.database import MARDatabase
+from emotive.models.mar.regression import METHODS, predict, standardize, track_rows
+from emotive.models.mar.representation import CodecState, RigCodec, RigMappingError, check_finite
+from emotive.models.mar.retarget import retarget, same_rig
+from emotive.models.mar.search import PointCloudSearch
+
+StyleSpec = str | Emotion | Mapping[str, float] | np.ndarray
+
+
+@dataclass(frozen=True)
+class TransferFrame:
+    """One output frame of the stream.
+
+    Attributes:
+        rotations: ``(J, 4)`` local rotations on the input's rig.
+        positions: ``(J, 3)`` local translations.
+        vector: ``(D,)`` the output pose vector.
+        time: output time in input frames (0 at the first frame).
+        advance: output frames elapsed at this frame (the timing prediction).
+        root: ``(2,)`` ground position of the root, metres.
+        yaw: heading of the root, radians.
+        contact: ``(2,)`` likelihood that the left/right foot is planted.
+        mixture: ``{"dataset/action/style": weight}`` of the classes in the mixture.
+    """
+
+    rotations: np.ndarray
+    positions: np.ndarray
+    vector: np.ndarray
+    time: float
+    advance: float
+    root: np.ndarray
+    yaw: float
+    contact: np.ndarray
+    mixture: dict[str, float]
+
+
+def parse_style(style: StyleSpec, db: MARDatabase) -> np.ndarray:
+    """``(S,)`` weights over :attr:`MARDatabase.styles` of a style spec.
+
+    Args:
+        style: ``"proud=0.6,angry=0.4"``, a style name, an :class:`Emotion`, a mapping
+            ``{style: weight}`` or an ``(S,)`` weight array.
+
+    Raises:
+        TransferError: unknown style names or bad weights; the message lists the known styles.
+    """
+    labels = db.styles
+    try:
+        if isinstance(style, np.ndarray):
+            return Emotion(style, labels).weights.copy()
+        if isinstance(style, Emotion):
+            return Emotion.from_dict(style.to_dict(), labels).weights.copy()
+        if isinstance(style, Mapping):
+            return Emotion.from_dict(style, labels).weights.copy()
+        return Emotion.parse(str(style), labels).weights.copy()
+    except EmotionError as exc:
+        raise TransferError(f"style {style!r}: {exc}") from None
+
+
+class StyleTransfer:
+    """The streaming style translator of one input rig.
+
+    Args:
+        db: the database.
+        codec: the input rig's codec (:meth:`RigCodec.for_motion`; the stream gives it the
+            database's reference rotations, :meth:`MARDatabase.codec`); its rig must be the
+            database's (same joint names and hierarchy); map other rigs with
+            :func:`emotive.models.mar.retarget.retarget` first, as :func:`transfer_motion` does.
+        style: initial output style (see :func:`parse_style`).
+        action: the input's action, if known (restricts the mixture to its classes).
+        input_style: the input's style, if known.
+        rho: output share of the bias (``db.config.rho`` when None).
+        bias: use the bias for inputs far from the database.
+        method: ``"mar"``, or a simpler local model for comparisons (see
+            :data:`emotive.models.mar.regression.METHODS`).
+        brute_force: exact distances to every frame instead of the search trees.
+        search: a shared :class:`PointCloudSearch` of ``db`` (built when None).
+
+    Raises:
+        RigMappingError: the codec's rig is not the database's.
+        TransferError: unknown action, input style or output style.
+    """
+
+    def __init__(
+        self, db: MARDatabase, codec: RigCodec, style: StyleSpec = "neutral", *,
+        action: str | None = None, input_style: str | None = None, rho: float | None = None,
+        bias: bool = True, method: str = "mar", brute_force: bool = False,
+        search: PointCloudSearch | None = None,
+    ) -> None:
+        if not same_rig(codec.skeleton, db.skeleton):
+            raise RigMappingError(
+                "the stream needs input on the database rig (joints "
+                f"{', '.join(db.skeleton.names[:4])}, ...); retarget the input first "
+                "(emotive.models.mar.retarget.retarget or transfer_motion)"
+            )
+        if method not in METHODS:
+            raise TransferError(f"unknown method {method!r}; use one of {METHODS}")
+        if rho is not None and not 0.0 <= rho <= 1.0:
+            raise TransferError(f"rho {rho} must lie in [0, 1] (0: pure style, 1: keep content)")
+        self.db, self.codec = db, db.codec(codec)
+        self.search = search or PointCloudSearch(db)
+        self.base = db.classes_where(action, input_style)
+        self.rho, self.bias, self.method, self.brute = rho, bias, method, brute_force
+        self._allowed: dict[tuple[int, ...], np.ndarray] = {}
+        self.set_style(style)
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the stream: the next push is a first frame."""
+        self._enc: CodecState | None = None
+        self._dec: CodecState | None = None
+        self._window: deque[np.ndarray] = deque(maxlen=self.db.config.window)
+        self._x_prev: np.ndarray | None = None
+        self._y_prev: np.ndarray | None = None
+        self.time = 0.0
+        self.frames = 0
+
+    def set_style(self, style: StyleSpec) -> None:
+        """Change the output style from the next frame on.
+
+        Raises:
+            TransferError: unknown styles, or no allowed class has all of them.
+        """
+        weights = parse_style(style, self.db)
+        chosen = np.flatnonzero(weights > 0)
+        key = tuple(int(i) for i in chosen)
+        if key not in self._allowed:
+            table = self.db.output_classes()[self.base][:, chosen]
+            allowed = self.base[(table >= 0).all(1)]
+            if len(allowed) == 0:
+                names = [self.db.styles[i] for i in chosen]
+                raise TransferError(
+                    f"no action of the index is recorded in all of the styles {names} among "
+                    "the classes the labels allow; blend styles of one action or drop "
+                    "--action/--input-style"
+                )
+            self._allowed[key] = allowed
+        self.styles, self.style_weights = chosen, weights[chosen]
+
+    @property
+    def style(self) -> dict[str, float]:
+        """The current output style ``{name: weight}``."""
+        return {self.db.styles[i]: float(w)
+                for i, w in zip(self.styles, self.style_weights, strict=True)}
+
+    def push(self, rotations: np.ndarray, positions: np.ndarray) -> TransferFrame:
+        """Translate one input frame.
+
+        Args:
+            rotations: ``(J, 4)`` local rotations of the input frame.
+            positions: ``(J, 3)`` its local translations.
+
+        Raises:
+            TransferError: NaN or infinite values in the frame.
+        """
+        rotations = np.asarray(rotations, dtype=np.float64)
+        positions = np.asarray(positions, dtype=np.float64)
+        if not (np.isfinite(rotations).all() and np.isfinite(positions).all()):
+            raise TransferError(f"input frame {self.frames} holds NaN or infinite values; "
+                                "repair or drop it before pushing")
+        db, cfg = self.db, self.db.config
+        vector, points, enc = self.codec.encode(rotations[None], positions[None], self._enc)
+        first = self._enc is None
+        self._enc = enc
+        if not self._window:
+            self._window.extend([points[0]] * cfg.window)
+        self._window.append(points[0])
+        window = np.stack(self._window)
+        allowed = self._allowed[tuple(int(i) for i in self.styles)]
+        nb = (self.search.brute_force(window, allowed) if self.brute
+              else self.search.search(window, enc.yaw, allowed))
+        x_t = standardize(db, vector[0])
+        x_prev = x_t if self._x_prev is None else self._x_prev
+        pred = predict(db, nb, x_t, x_prev, self._y_prev, self.styles, self.style_weights,
+                       rho=self.rho, bias=self.bias, method=self.method)
+        self._x_prev, self._y_prev = x_t, pred.pose
+        out = pred.pose * db.std + db.mean
+        contact = self._footplants(nb)
+        if first:
+            self._dec = CodecState(enc.root.copy(), enc.yaw)
+            root, yaw, advance = enc.root[[0, 2]].copy(), enc.yaw, 0.0
+        else:
+            advance = pred.advance
+            roots, yaws, self._dec = self.codec.integrate(out[None], np.array([advance]),
+                                                          self._dec)
+            root, yaw = roots[0], float(yaws[0])
+            self.time += advance
+        rot, pos = self.codec.decode(out[None], root[None], np.array([yaw]))
+        self.frames += 1
+        mixture = {f"{db.groups[db.class_group[c]]}/{db.class_style[c]}": float(w)
+                   for c, w in zip(nb.classes, pred.mixture, strict=True) if w > 0}
+        return TransferFrame(rot[0], pos[0], out, self.time, advance, root, yaw, contact,
+                             mixture)
+
+    def _footplants(self, nb) -> np.ndarray:
+        """``(2,)`` footplant likelihood: inverse-distance vote of the nearest lower-body
+        neighbours, on the output styles' contacts at their canonical times."""
+        db = self.db
+        frames, dist = self.search.footplants(nb)
+        out_cls = db.output_classes()[db.frame_class[frames]][:, self.styles]
+        tau = np.broadcast_to(db.tau[frames][:, None], out_cls.shape)
+        _, _, contact = track_rows(db, out_cls, tau)
+        vote = 1.0 / np.maximum(dist, 1e-9)
+        return np.einsum("k,o,kof->f", vote / vote.sum(), self.style_weights, contact)
+
+
+@dataclass(frozen=True)
+class TransferResult:
+    """Output of :func:`transfer_motion`.
+
+    Attributes:
+        motion: the translated clip on the input's rig at the input's frame rate.
+        contacts: ``(T_out, 2)`` planted feet (after smoothing) of the output.
+        frames: the raw stream output, one per input frame.
+        pinned: whether the feet were pinned by IK.
+    """
+
+    motion: Motion
+    contacts: np.ndarray
+    frames: list[TransferFrame]
+    pinned: bool
+
+
+def _retime(frames: list[TransferFrame], codec: RigCodec, fps: float) -> tuple[
+        np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Output frames at whole output times: rotations ``(T, J, 4)``, positions ``(T, J, 3)``,
+    contact likelihoods ``(T, 2)`` and the input frame each comes from ``(T,)``."""
+    times = np.array([f.time for f in frames])
+    grid = np.arange(0.0, times[-1] + 1e-9, 1.0)
+    vectors = np.stack([f.vector for f in frames])
+    roots = np.stack([f.root for f in frames])
+    yaws = np.unwrap(np.array([f.yaw for f in frames]))
+    contact = np.stack([f.contact for f in frames])
+
+    def at(values: np.ndarray) -> np.ndarray:
+        flat = values.reshape(len(values), -1)
+        return np.stack([np.interp(grid, times, flat[:, i]) for i in range(flat.shape[1])],
+                        1).reshape(len(grid), *values.shape[1:])
+
+    rot, pos = codec.decode(at(vectors), at(roots), at(yaws[:, None])[:, 0])
+    source = np.interp(grid, times, np.arange(len(times), dtype=np.float64))
+    return rot, pos, at(contact), source
+
+
+def transfer_motion(
+    motion: Motion,
+    db: MARDatabase,
+    style: StyleSpec | EmotionSchedule = "neutral",
+    *,
+    action: str | None = None,
+    input_style: str | None = None,
+    rho: float | None = None,
+    role_map=None,
+    pin: bool = True,
+    search: PointCloudSearch | None = None,
+    method: str = "mar",
+    bias: bool = True,
+) -> TransferResult:
+    """Translate a whole clip into a style (or a schedule of styles over time).
+
+    Args:
+        motion: the input clip on any rig with the joint roles, ``T >= window`` frames.
+        db: the database.
+        style: the output style, or an :class:`EmotionSchedule` over :attr:`MARDatabase.styles`
+            (seconds of the input).
+        action, input_style: labels of the input, if known.
+        rho: output share of the bias.
+        role_map: role map of the input rig.
+        pin: pin planted feet by IK.
+        search: a shared search of ``db``.
+        method, bias: see :class:`StyleTransfer`.
+
+    Returns:
+        The output on the input's rig at the input's frame rate.
+
+    Raises:
+        TransferError: a clip shorter than the window, NaN frames, unknown labels or styles.
+        RigMappingError: the input rig lacks joint roles.
+    """
+    from emotive.core.ops import resample
+
+    name = motion.metadata.get("name", "the input")
+    check_finite(motion, name)
+    need = db.config.window
+    if motion.num_frames < need:
+        raise TransferError(f"{name} has {motion.num_frames} frames; the style transfer needs "
+                            f"at least {need} (its search window); give a longer clip")
+    original_fps = motion.fps
+    work = motion if motion.fps == db.config.fps else resample(motion, db.config.fps)
+    foreign = not same_rig(work.skeleton, db.skeleton)
+    # Fails early, naming the input, when its rig cannot be mapped onto the roles.
+    RigCodec.for_motion(work, role_map, name)
+    if foreign:
+        work = retarget(work, db.rest_motion(), source_roles=role_map)
+    codec = RigCodec.for_motion(work, None, name)
+    schedule = style if isinstance(style, EmotionSchedule) else None
+    first_style = schedule.weights[0] if schedule is not None else style
+    if schedule is not None and tuple(schedule.labels) != db.styles:
+        raise TransferError("the style schedule must be over the index's styles "
+                            f"({', '.join(db.styles)})")
+    stream = StyleTransfer(db, codec, first_style, action=action, input_style=input_style,
+                           rho=rho, bias=bias, method=method, search=search)
+    weights = schedule.sample(db.config.fps, work.num_frames) if schedule is not None else None
+    frames = []
+    for t in range(work.num_frames):
+        if weights is not None:
+            stream.set_style(weights[t])
+        frames.append(stream.push(work.rotations[t], work.positions[t]))
+    rot, pos, like, _ = _retime(frames, stream.codec, db.config.fps)
+    if db.config.contact_sigma > 0 and len(like) > 1:
+        like = gaussian_filter1d(like, db.config.contact_sigma, axis=0, mode="nearest")
+    contacts = like > 0.5
+    label = ",".join(f"{k}={v:.3g}" for k, v in stream.style.items())
+    meta = {**motion.metadata, "style": label, "source": "emotive transfer (MAR)"}
+    out = Motion(work.skeleton, rot, pos, db.config.fps, meta)
+    pinned = False
+    if pin and contacts.any():
+        from emotive.ik import pin_feet
+
+        out = pin_feet(out, contacts).motion
+        pinned = True
+    if foreign:
+        out = retarget(out, motion if motion.fps == db.config.fps
+                       else resample(motion, db.config.fps), target_roles=role_map)
+        out = out.replace(metadata=meta)
+    if original_fps != db.config.fps:
+        out = resample(out, original_fps)
+        keep = np.round(np.arange(out.num_frames) * db.config.fps / original_fps).astype(int)
+        contacts = contacts[np.clip(keep, 0, len(contacts) - 1)]
+    return TransferResult(out, contacts, frames, pinned)
