@@ -6,12 +6,18 @@ Legend: ``B`` batch dimensions (any number, possibly none), ``T`` frames, ``J`` 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import NamedTuple
 
 import numpy as np
 import torch
 
+from emotive.transforms.fast_np import qmatrix
 from emotive.transforms.numpy_bridge import numpy_kernel
-from emotive.transforms.rotations import quaternion_apply, quaternion_multiply
+from emotive.transforms.rotations import (
+    quaternion_apply,
+    quaternion_multiply,
+    quaternion_to_matrix,
+)
 
 
 def depth_levels(parents: Sequence[int]) -> list[list[int]]:
@@ -101,6 +107,16 @@ def forward_kinematics_np(
     return numpy_kernel(forward_kinematics)(local_rotations, local_positions, list(parents))
 
 
+class _Tree(NamedTuple):
+    """:class:`PoseFK`'s index arrays and offsets in one backend."""
+
+    levels: list
+    parents: list
+    offsets: object
+    end_parents: object
+    end_offsets: object
+
+
 class PoseFK:
     """Joint and end-site positions of one rig with fixed bone offsets, for many poses fast.
 
@@ -121,32 +137,45 @@ class PoseFK:
                  end_site_parents: Sequence[int] = (),
                  end_site_offsets: torch.Tensor | np.ndarray | None = None,
                  dtype: torch.dtype = torch.float32) -> None:
-        self.levels = [torch.as_tensor(level) for level in depth_levels(parents)]
-        self.parents = [torch.as_tensor(np.asarray(parents)[level.numpy()])
-                        for level in self.levels]
-        self.offsets = torch.as_tensor(np.array(offsets), dtype=dtype)[..., None]
-        self.num_joints = len(parents)
-        self.end_parents = torch.as_tensor(np.array(end_site_parents, dtype=np.int64))
+        levels = [np.asarray(level, dtype=np.int64) for level in depth_levels(parents)]
         ends = np.zeros((0, 3)) if end_site_offsets is None else np.asarray(end_site_offsets)
-        self.end_offsets = torch.as_tensor(ends.reshape(-1, 3).copy(), dtype=dtype)[..., None]
+        self.num_joints = len(parents)
+        # Index arrays and offsets once per backend: NumPy input is composed in float64
+        # NumPy without a round trip through torch (faster for one streamed frame).
+        self._numpy = _Tree(
+            levels, [np.asarray(parents, dtype=np.int64)[level] for level in levels],
+            np.array(offsets, dtype=np.float64)[..., None],
+            np.array(end_site_parents, dtype=np.int64),
+            ends.reshape(-1, 3).astype(np.float64)[..., None],
+        )
+        self._torch = _Tree(
+            [torch.as_tensor(level) for level in levels],
+            [torch.as_tensor(p) for p in self._numpy.parents],
+            torch.as_tensor(np.array(offsets), dtype=dtype)[..., None],
+            torch.as_tensor(self._numpy.end_parents),
+            torch.as_tensor(ends.reshape(-1, 3).copy(), dtype=dtype)[..., None],
+        )
 
-    def __call__(self, rotations: torch.Tensor) -> torch.Tensor:
-        """``(B, J + E, 3)`` world positions of ``(B, J, 4)`` local unit quaternions."""
-        from emotive.transforms.rotations import quaternion_to_matrix
-
-        local = quaternion_to_matrix(rotations)
-        batch = rotations.shape[0]
-        world_r = local.new_empty(batch, self.num_joints, 3, 3)
-        world_x = local.new_empty(batch, self.num_joints, 3, 1)
-        for level, par in zip(self.levels, self.parents, strict=True):
+    def __call__(self, rotations: torch.Tensor | np.ndarray) -> torch.Tensor | np.ndarray:
+        """``(B, J + E, 3)`` world positions of ``(B, J, 4)`` local unit quaternions: a
+        tensor of the class's dtype for a tensor, float64 NumPy for NumPy."""
+        if isinstance(rotations, np.ndarray):
+            tree, local, cat = self._numpy, qmatrix(rotations), np.concatenate
+            world_r = np.empty((rotations.shape[0], self.num_joints, 3, 3))
+            world_x = np.empty((rotations.shape[0], self.num_joints, 3, 1))
+        else:
+            tree, local, cat = self._torch, quaternion_to_matrix(rotations), torch.cat
+            world_r = local.new_empty(rotations.shape[0], self.num_joints, 3, 3)
+            world_x = local.new_empty(rotations.shape[0], self.num_joints, 3, 1)
+        for level, par in zip(tree.levels, tree.parents, strict=True):
             if par[0] < 0:
                 world_r[:, level] = local[:, level]
-                world_x[:, level] = self.offsets[level]
+                world_x[:, level] = tree.offsets[level]
             else:
                 pr = world_r[:, par]
                 world_r[:, level] = pr @ local[:, level]
-                world_x[:, level] = pr @ self.offsets[level] + world_x[:, par]
-        if len(self.end_parents):
-            ends = world_r[:, self.end_parents] @ self.end_offsets + world_x[:, self.end_parents]
-            world_x = torch.cat((world_x, ends), 1)
+                world_x[:, level] = pr @ tree.offsets[level] + world_x[:, par]
+        if len(tree.end_parents):
+            ends = world_r[:, tree.end_parents] @ tree.end_offsets + world_x[:, tree.end_parents]
+            world_x = cat((world_x, ends), 1)
         return world_x[..., 0]

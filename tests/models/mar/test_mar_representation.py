@@ -89,34 +89,3 @@ def test_joints_near_180_degrees_encode_continuously_relative_to_the_reference()
     rot_back, _ = based.decode(vectors, np.zeros((30, 2)), np.zeros(30))
     dots = np.abs((rot_back[:, codec.below] * flipped.rotations[:, codec.below]).sum(-1))
     np.testing.assert_allclose(dots, 1.0, atol=1e-9)
-
-
-def test_the_numpy_rotation_kernels_equal_the_torch_kernels(rng):
-    """The streaming codec's NumPy kernels (``fastrot``) against ``np_rotations``."""
-    from emotive.models.mar import fastrot
-    from emotive.transforms import np_rotations as ref
-    from emotive.transforms.kinematics import PoseFK
-
-    q = rng.normal(size=(50, 4))
-    p = rng.normal(size=(50, 4))
-    v = rng.normal(size=(50, 3))
-    aa = np.concatenate((rng.normal(size=(40, 3)), 1e-6 * rng.normal(size=(10, 3))))
-    np.testing.assert_allclose(fastrot.qmul(q, p), ref.quaternion_multiply(q, p), atol=1e-12)
-    unit = fastrot.qnormalize(q)
-    np.testing.assert_allclose(unit, ref.quaternion_normalize(q), atol=1e-12)
-    np.testing.assert_allclose(fastrot.qapply(unit, v), ref.quaternion_apply(unit, v),
-                               atol=1e-12)
-    np.testing.assert_allclose(fastrot.qmatrix(q), ref.quaternion_to_matrix(q), atol=1e-12)
-    np.testing.assert_allclose(fastrot.expmap_to_quat(aa), ref.axis_angle_to_quaternion(aa),
-                               atol=1e-12)
-    np.testing.assert_allclose(fastrot.quat_to_expmap(q), ref.quaternion_to_axis_angle(q),
-                               atol=1e-12)
-    yaw = rng.uniform(-4, 4, 7)
-    np.testing.assert_allclose(fastrot.yaw_quat(yaw), ref.yaw_quaternion(yaw), atol=1e-12)
-    sk = styled("walk", "neutral", frames=2).skeleton
-    fk = fastrot.FrameFK(sk.parents, sk.offsets, sk.end_site_parents, sk.end_site_offsets)
-    torch_fk = PoseFK(sk.parents, sk.offsets, sk.end_site_parents, sk.end_site_offsets,
-                      dtype=__import__("torch").float64)
-    rot = rng.normal(size=(3, sk.num_joints, 4))
-    np.testing.assert_allclose(fk(rot), torch_fk(__import__("torch").from_numpy(rot)).numpy(),
-                               atol=1e-12)

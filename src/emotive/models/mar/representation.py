@@ -42,16 +42,15 @@ from emotive.core.skeleton import Skeleton
 from emotive.errors import RigError
 from emotive.features.contacts import leg_length
 from emotive.models.mar.config import TransferError
-from emotive.models.mar.fastrot import (
+from emotive.transforms.fast_np import (
     CONJUGATE,
-    FrameFK,
     expmap_to_quat,
     qapply,
     qmul,
     quat_to_expmap,
     yaw_quat,
 )
-from emotive.transforms.kinematics import forward_kinematics_np
+from emotive.transforms.kinematics import PoseFK, forward_kinematics_np
 
 #: Columns of the root motion: sideways step, forward step, turn, height.
 ROOT_COLUMNS = 4
@@ -216,14 +215,14 @@ class RigCodec:
 
     def _stream_points(self, rotations: np.ndarray, positions: np.ndarray) -> tuple[
             np.ndarray, np.ndarray, np.ndarray]:
-        """:meth:`world_points` of one frame by :class:`~emotive.models.mar.fastrot.FrameFK`
+        """:meth:`world_points` of one frame by :class:`~emotive.transforms.kinematics.PoseFK`
         (bones of the codec's fixed lengths); only the mover's world transform is returned in
         the rotations and positions (the rest is left at zero)."""
         if "fk" not in self._cache:
             offsets = self.local_positions.copy()
             offsets[self.mover] = 0.0
             sk = self.skeleton
-            self._cache["fk"] = FrameFK(sk.parents, offsets, sk.end_site_parents,
+            self._cache["fk"] = PoseFK(sk.parents, offsets, sk.end_site_parents,
                                         sk.end_site_offsets)
         rot_m, pos_m = rotations[0, self.mover], positions[0, self.mover]
         for a in self.above:

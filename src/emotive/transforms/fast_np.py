@@ -1,16 +1,14 @@
-"""Plain NumPy rotation kernels of the streaming encoder and decoder.
+"""Plain NumPy rotation kernels for a few poses at a time (streaming).
 
 :mod:`emotive.transforms.np_rotations` wraps the torch kernels of
 :mod:`emotive.transforms.rotations`; each call converts arrays to tensors and back, which costs
 more than the arithmetic on the few quaternions of one streamed frame. These are the same
 formulas (same conventions: ``(w, x, y, z)``, Hamilton product, ``+Y`` up) on NumPy arrays;
-``tests/models/mar/test_mar_representation.py`` checks them against the torch kernels.
-:class:`FrameFK` is :class:`emotive.transforms.kinematics.PoseFK` for NumPy.
+``tests/transforms/test_fast_np.py`` checks them against the torch kernels.
+:class:`emotive.transforms.kinematics.PoseFK` uses :func:`qmatrix` for NumPy input.
 """
 
 from __future__ import annotations
-
-from collections.abc import Sequence
 
 import numpy as np
 
@@ -82,48 +80,3 @@ def yaw_quat(angle: np.ndarray) -> np.ndarray:
     half = 0.5 * np.asarray(angle, dtype=np.float64)
     zero = np.zeros_like(half)
     return np.stack((np.cos(half), zero, np.sin(half), zero), -1)
-
-
-class FrameFK:
-    """World positions of joints and end sites of one rig with fixed offsets (NumPy).
-
-    Args:
-        parents: ``J`` parent indices in topological order.
-        offsets: ``(J, 3)`` local translations.
-        end_site_parents: ``E`` joints the end sites hang from.
-        end_site_offsets: ``(E, 3)`` end-site offsets.
-    """
-
-    def __init__(self, parents: Sequence[int], offsets: np.ndarray,
-                 end_site_parents: Sequence[int] = (),
-                 end_site_offsets: np.ndarray | None = None) -> None:
-        from emotive.transforms.kinematics import depth_levels
-
-        parents = np.asarray(parents, dtype=np.int64)
-        self.levels = [np.array(level, dtype=np.int64) for level in depth_levels(parents)]
-        self.parents = [parents[level] for level in self.levels]
-        self.offsets = np.asarray(offsets, dtype=np.float64)[..., None]
-        self.num_joints = len(parents)
-        self.end_parents = np.asarray(end_site_parents, dtype=np.int64)
-        ends = np.zeros((0, 3)) if end_site_offsets is None else np.asarray(end_site_offsets)
-        self.end_offsets = ends.reshape(-1, 3).astype(np.float64)[..., None]
-
-    def __call__(self, rotations: np.ndarray) -> np.ndarray:
-        """``(B, J + E, 3)`` world positions of ``(B, J, 4)`` local quaternions."""
-        local = qmatrix(rotations)
-        batch = rotations.shape[0]
-        world_r = np.empty((batch, self.num_joints, 3, 3))
-        world_x = np.empty((batch, self.num_joints, 3, 1))
-        for level, par in zip(self.levels, self.parents, strict=True):
-            if par[0] < 0:
-                world_r[:, level] = local[:, level]
-                world_x[:, level] = self.offsets[level]
-            else:
-                pr = world_r[:, par]
-                world_r[:, level] = pr @ local[:, level]
-                world_x[:, level] = pr @ self.offsets[level] + world_x[:, par]
-        if len(self.end_parents):
-            ends = (world_r[:, self.end_parents] @ self.end_offsets
-                    + world_x[:, self.end_parents])
-            world_x = np.concatenate((world_x, ends), 1)
-        return world_x[..., 0]
