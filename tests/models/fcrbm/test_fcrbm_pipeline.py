@@ -326,3 +326,13 @@ def test_train_command_reports_config_errors(tmp_path):
     assert isinstance(result.exception, ConfigError)
     assert "max_ar_radius" in str(result.exception)
     assert not (tmp_path / "run").exists()
+
+
+def test_generate_without_a_model_says_how_to_get_one(tmp_path, monkeypatch):
+    from emotive.models.fcrbm import generate
+
+    monkeypatch.setattr(generate, "default_checkpoint_path", lambda: tmp_path / "none.pt")
+    result = invoke_fcrbm("generate", "--emotion", "sad", "--out", tmp_path / "x.bvh")
+    assert isinstance(result.exception, ConfigError)
+    assert "emotive fcrbm train" in str(result.exception) and "--model" in str(result.exception)
+    assert not (tmp_path / "x.bvh").exists()

@@ -74,8 +74,12 @@ def load_fcrbm_model(path: str | Path | None = None) -> FCRBMModel:
     Raises:
         ConfigError: missing, corrupt, or not an FCRBM checkpoint.
     """
-    from emotive.models.fcrbm.training import load_fcrbm_checkpoint
+    from emotive.models.fcrbm.training import ConfigError, load_fcrbm_checkpoint
 
+    if path is None and not default_checkpoint_path().is_file():
+        raise ConfigError("no built-in FCRBM checkpoint ships yet (see issue 6); train one with "
+                          "`emotive fcrbm train --out models/fcrbm` and pass --model "
+                          "models/fcrbm/best.pt")
     network, codec, _ = load_fcrbm_checkpoint(path or default_checkpoint_path())
     return FCRBMModel(network, codec)
 
