@@ -46,11 +46,8 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
 from common import machine_info, write_record  # noqa: E402
+from eval_ik import DATASET, EMOTIONS, HOP_SECONDS, WINDOW_SECONDS  # noqa: E402
 
-EMOTIONS = ("happy", "sad", "angry", "neutral")
-DATASET = "bandai-namco-1"
-WINDOW_SECONDS = 4.0
-HOP_SECONDS = 1.0
 #: Frames of the barycentre-rule baselines (they step through a KD-tree query each frame).
 BASELINE_FRAMES = 10000
 #: Frames of a not-a-replay window (1 s) and the hop between generated windows.

@@ -8,9 +8,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import typer
-from typer.testing import CliRunner
 
+from cli_helpers import invoke_command, nan_copy
 from emotive.commands.reconstruct import reconstruct, summary
 from emotive.core import Motion, Skeleton
 from emotive.errors import BVHError, OutputError, RigError
@@ -65,15 +64,8 @@ def walk_file(tmp_path: Path) -> Path:
 
 
 def invoke(*args: object):
-    """Run ``reconstruct`` as a sub-command of a small app, as :mod:`emotive.cli` registers it."""
-    app = typer.Typer()
-
-    @app.callback()
-    def _root() -> None:
-        """A group, so that the sub-command is called by name."""
-
-    app.command("reconstruct")(reconstruct)
-    return CliRunner().invoke(app, ["reconstruct", *map(str, args)], env={"COLUMNS": "200"})
+    """Run ``reconstruct`` with ``args``."""
+    return invoke_command("reconstruct", reconstruct, *args)
 
 
 def test_round_trip_writes_the_input_rig_close_to_the_input(walk_file, tmp_path):
@@ -127,17 +119,6 @@ def test_a_role_map_file_rebuilds_a_renamed_rig(tmp_path):
     assert read_bvh(out).skeleton.names[0] == "pelvis"
 
 
-def _nan_file(walk_file: Path) -> Path:
-    lines = walk_file.read_text().splitlines()
-    first = lines.index("MOTION") + 3
-    values = lines[first + 5].split()
-    values[4] = "nan"
-    lines[first + 5] = " ".join(values)
-    bad = walk_file.with_name("nan.bvh")
-    bad.write_text("\n".join(lines) + "\n")
-    return bad
-
-
 @pytest.mark.parametrize(
     ("case", "error", "words"),
     [
@@ -160,7 +141,7 @@ def test_bad_input_fails_in_one_line_without_output(walk_file, tmp_path, case, e
         args[0] = tmp_path / "notes.bvh"
         args[0].write_text("these are notes, not a motion\n")
     elif case == "nan":
-        args[0] = _nan_file(walk_file)
+        args[0] = nan_copy(walk_file)
     elif case == "preview":
         args += ["--preview", tmp_path / "p.png"]
     before = sorted(tmp_path.iterdir())

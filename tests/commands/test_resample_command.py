@@ -7,9 +7,8 @@ import sys
 
 import numpy as np
 import pytest
-import typer
-from typer.testing import CliRunner
 
+from cli_helpers import invoke_command
 from emotive.commands.resample import resample
 from emotive.errors import EmotionError, OutputError
 from emotive.io.bvh import read_bvh
@@ -39,15 +38,8 @@ def fake_data(monkeypatch):
 
 
 def invoke(*args: object):
-    """Run ``resample`` as a sub-command of a small app, as :mod:`emotive.cli` registers it."""
-    app = typer.Typer()
-
-    @app.callback()
-    def _root() -> None:
-        """A group, so that the sub-command is called by name."""
-
-    app.command("resample")(resample)
-    return CliRunner().invoke(app, ["resample", *map(str, args)], env={"COLUMNS": "200"})
+    """Run ``resample`` with ``args``."""
+    return invoke_command("resample", resample, *args)
 
 
 def test_writes_a_reproducible_file_of_any_length(fake_data, tmp_path):

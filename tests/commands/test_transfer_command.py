@@ -7,8 +7,6 @@ import sys
 from pathlib import Path
 
 import pytest
-import typer
-from typer.testing import CliRunner
 
 from emotive.commands.transfer import transfer
 from emotive.errors import BVHError, OutputError
@@ -18,6 +16,8 @@ from emotive.models.mar.representation import RigMappingError
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "models" / "mar"))
 from mar_helpers import CONFIG, examples, styled
+
+from cli_helpers import invoke_command, nan_copy
 
 
 @pytest.fixture(scope="module")
@@ -36,15 +36,8 @@ def walk_file(tmp_path: Path) -> Path:
 
 
 def invoke(*args: object):
-    """Run ``transfer`` as a sub-command of a small app, as :mod:`emotive.cli` registers it."""
-    app = typer.Typer()
-
-    @app.callback()
-    def _root() -> None:
-        """A group, so that the sub-command is called by name."""
-
-    app.command("transfer")(transfer)
-    return CliRunner().invoke(app, ["transfer", *map(str, args)], env={"COLUMNS": "200"})
+    """Run ``transfer`` with ``args``."""
+    return invoke_command("transfer", transfer, *args)
 
 
 def test_a_clip_is_written_in_the_new_style_on_its_own_rig(walk_file, synthetic_index, tmp_path):
@@ -79,17 +72,6 @@ def test_a_style_schedule_file_drives_the_style(walk_file, synthetic_index, tmp_
     assert chest[-15:].mean() > 0.25
 
 
-def _nan_file(walk_file: Path) -> Path:
-    lines = walk_file.read_text().splitlines()
-    first = lines.index("MOTION") + 3
-    values = lines[first + 5].split()
-    values[4] = "nan"
-    lines[first + 5] = " ".join(values)
-    bad = walk_file.with_name("nan.bvh")
-    bad.write_text("\n".join(lines) + "\n")
-    return bad
-
-
 @pytest.mark.parametrize(
     ("case", "error", "words"),
     [
@@ -117,7 +99,7 @@ def test_bad_input_fails_in_one_line_without_output(
         motion = styled("walk", "neutral", 2, frames=2)
         args[0] = write_bvh(motion, tmp_path / "short.bvh", unit="cm")
     elif case == "nan":
-        args[0] = _nan_file(walk_file)
+        args[0] = nan_copy(walk_file)
     elif case == "suffix":
         args[4] = tmp_path / "out.txt"
     elif case == "action":

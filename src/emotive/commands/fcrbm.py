@@ -16,6 +16,7 @@ from emotive.commands.options import (
     PreviewOpt,
     ResumeOpt,
     TrainOutOpt,
+    run_training,
 )
 
 app = typer.Typer(help="Valence/arousal-controlled movement with a factored conditional RBM.",
@@ -32,20 +33,11 @@ def train(
 ) -> None:
     """Train the FCRBM by contrastive divergence on walks of every style with a valence/arousal
     entry (Ctrl-C saves; --resume continues)."""
-    from dataclasses import replace
-
     from rich.console import Console
 
     from emotive.models.fcrbm.training import load_fcrbm_settings, train_fcrbm
 
-    model_config, settings = load_fcrbm_settings(config)
-    if epochs is not None:
-        settings = replace(settings, epochs=epochs)
-    try:
-        result = train_fcrbm(model_config, settings, progress=True, out_dir=out, resume=resume,
-                             seed=seed)
-    except KeyboardInterrupt:
-        raise typer.Exit(130) from None
+    result = run_training(load_fcrbm_settings, train_fcrbm, config, out, resume, seed, epochs)
     last = result.history[-1] if result.history else {}
     Console(stderr=True).print(
         f"wrote {out / 'last.pt'}, {out / 'best.pt'} and {out / 'log.csv'}: "
@@ -151,4 +143,4 @@ def generate(
         captions = [f"valence {z[0]:.2f} arousal {z[1]:.2f}" for z in context]
         render_preview(motion, preview, captions=captions, title=f"{out.name}: FCRBM",
                        progress=True)
-        console.print(f"wrote {preview}")
+        Console(stderr=True).print(f"wrote {preview}")

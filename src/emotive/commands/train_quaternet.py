@@ -10,7 +10,7 @@ from typing import Annotated
 
 import typer
 
-from emotive.commands.options import ConfigOpt, EpochsOpt, ResumeOpt, TrainOutOpt
+from emotive.commands.options import ConfigOpt, EpochsOpt, ResumeOpt, TrainOutOpt, run_training
 
 
 def train_quaternet_command(
@@ -21,23 +21,14 @@ def train_quaternet_command(
     epochs: EpochsOpt = None,
 ) -> None:
     """Train the QuaterNet baseline on the gait data (Ctrl-C saves; --resume continues)."""
-    from dataclasses import replace
-
     from rich.console import Console
 
     from emotive.models.quaternet.training import load_quaternet_settings, train_quaternet
 
-    console = Console(stderr=True)
-    model_config, settings = load_quaternet_settings(config)
-    if epochs is not None:
-        settings = replace(settings, epochs=epochs)
-    try:
-        result = train_quaternet(model_config, settings, progress=True, out_dir=out,
-                                 resume=resume, seed=seed)
-    except KeyboardInterrupt:
-        raise typer.Exit(130) from None
+    result = run_training(load_quaternet_settings, train_quaternet, config, out, resume, seed,
+                          epochs)
     last = result.history[-1] if result.history else {}
-    console.print(
+    Console(stderr=True).print(
         f"wrote {result.last_path}, {result.best_path} and {out / 'log.csv'}: "
         f"{len(result.history)} epochs, last train loss {last.get('train_total', float('nan')):.4g}"
         f", best validation loss {result.best_val:.4g}"

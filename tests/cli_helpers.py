@@ -1,0 +1,34 @@
+"""Helpers of the command tests: run one sub-command, write a BVH file with a NaN frame."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+import typer
+from typer.testing import CliRunner
+
+
+def invoke_command(name: str, command: Callable, *args: object):
+    """Run ``command`` as the sub-command ``name`` of a small app, as :mod:`emotive.cli`
+    registers it, with ``args`` as its command line."""
+    app = typer.Typer()
+
+    @app.callback()
+    def _root() -> None:
+        """A group, so that the sub-command is called by name."""
+
+    app.command(name)(command)
+    return CliRunner().invoke(app, [name, *map(str, args)], env={"COLUMNS": "200"})
+
+
+def nan_copy(bvh_file: Path) -> Path:
+    """A copy of a BVH file (``nan.bvh`` beside it) with one channel of frame 6 set to NaN."""
+    lines = bvh_file.read_text().splitlines()
+    first = lines.index("MOTION") + 3
+    values = lines[first + 5].split()
+    values[4] = "nan"
+    lines[first + 5] = " ".join(values)
+    bad = bvh_file.with_name("nan.bvh")
+    bad.write_text("\n".join(lines) + "\n")
+    return bad
