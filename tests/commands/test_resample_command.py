@@ -52,9 +52,11 @@ def test_writes_a_reproducible_file_of_any_length(fake_data, tmp_path):
     # 600 frames from 435 captured frames: the length does not depend on the data's.
     assert motion.num_frames == 600 and motion.fps == 30.0
     assert "Shoulder_L" in motion.skeleton.names
-    line = result.stdout.strip().splitlines()[-1]
+    line, guard = result.stdout.strip().splitlines()[-2:]
     assert line.startswith(f"wrote {a}: sad, seed 3: 600 frames (20.00 s) resampled and rebuilt")
     assert "off target by more than 10 mm after retries: none" in line
+    assert guard.startswith("not a replay: 115 1-s windows checked against the captured clips")
+    assert "still" not in guard
     assert invoke("--emotion", "sad", "--seconds", 20, "--out", b, "--seed", 3,
                   "--workers", 1).exit_code == 0
     assert a.read_bytes() == b.read_bytes()

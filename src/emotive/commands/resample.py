@@ -15,11 +15,14 @@ from __future__ import annotations
 import math
 import os
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
 from emotive.commands.options import PreviewOpt
+
+if TYPE_CHECKING:
+    from emotive.models.lgb.novelty import NoveltyReport
 
 #: Longest motion one call makes, seconds (a day).
 MAX_SECONDS = 86400.0
@@ -38,6 +41,16 @@ def idle_cores(most: int = 2) -> int:
     except OSError:  # not available on every platform
         load = 0.0
     return max(1, min(most, cores - math.floor(load)))
+
+
+def novelty_line(report: NoveltyReport) -> str:
+    """One line on the not-a-replay guard (:mod:`emotive.models.lgb.novelty`)."""
+    head = (f"not a replay: {report.windows} 1-s windows checked against the captured clips, "
+            f"closest {1000 * report.closest:.1f} mm (threshold {1000 * report.threshold:.1f} "
+            f"mm); {report.redrawn} stretches redrawn")
+    if report.below:
+        return head + f"; {report.below} windows still at or below the threshold"
+    return head
 
 
 def check_request(emotion: str, seconds: float, fps: float | None) -> str:
@@ -150,6 +163,8 @@ def resample(
     write_bvh(motion, out)
     typer.echo(f"wrote {out}: {label}, seed {seed}: "
                f"{summary(result, model.fps, 'resampled and rebuilt')}")
+    if result.novelty is not None:
+        typer.echo(novelty_line(result.novelty))
     if preview is not None:
         from emotive.render.preview import render_preview
 

@@ -152,13 +152,17 @@ def _reference_predict(db, nb, x_t, x_prev, y_prev, styles, style_weights, rho, 
         lo, hi = mu - cfg.kappa * sigma, mu + cfg.kappa * sigma
         dx = np.where(x_t > hi, x_t - hi, np.where(x_t < lo, x_t - lo, 0.0)) if bias \
             else np.zeros_like(mu)
+        # The paper's ridge, in the data's own units (not standardized).
+        def raw(v):
+            return v * db.std + db.mean
+
         u = np.stack(np.broadcast_arrays(
-            xs_p[:, None], y_p, xs_t[:, None], np.ones(y_t.shape)), -1)
-        beta = ridge_ar(np.moveaxis(u, 2, 3), np.moveaxis(y_t, 2, 3), cfg.ridge)
+            raw(xs_p)[:, None], raw(y_p), raw(xs_t)[:, None], np.ones(y_t.shape)), -1)
+        beta = ridge_ar(np.moveaxis(u, 2, 3), np.moveaxis(raw(y_t), 2, 3), cfg.ridge)
         query = np.stack(np.broadcast_arrays(
-            (x_prev - dx)[:, None], (y_prev - rho * dx)[:, None], (x_t - dx)[:, None],
+            raw(x_prev - dx)[:, None], raw(y_prev - rho * dx)[:, None], raw(x_t - dx)[:, None],
             np.ones((len(frames), 1, len(x_t)))), -1)
-        pose_co = (query * beta).sum(-1) + rho * dx[:, None]
+        pose_co = standardize(db, (query * beta).sum(-1)) + rho * dx[:, None]
     advance_k = db.rate[frames][:, None] * out_rate
     step_ref = y_prev if y_prev is not None else pose_co
     q_feat = np.concatenate((np.broadcast_to(x_t, pose_co.shape),

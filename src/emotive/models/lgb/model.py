@@ -38,6 +38,12 @@ Issue 7, section 2 (paper sections 5.2 and 5.3). For one emotional state:
    paper's order 3. The targets the IK chains need but the paper's processes leave out (neck,
    shoulders, hand tips, toes), the clavicles and the rest of the root motion (turn and tilt)
    are passengers: taken from the drawn observations, so they follow them.
+   **Not a replay.** Four independent chains can still line up on one captured passage, or
+   hold a near-still pose that a take also holds. The guard (:meth:`EmotionResampler
+   .sample_features`, :mod:`emotive.models.lgb.novelty`) compares every 5th 1-s window of the
+   resampled head, wrists and ankles with every captured window of the emotion and redraws
+   the stretches that come within 10 % of how close two distinct captured clips come (their
+   5th percentile); on the Bandai data this redraws a few dozen stretches per 30,000 frames.
 4. **Continuity.** The bootstraps draw observed successors (the successor rule). Where a chain
    jumps to another passage, its offset fades over about 10 frames (:data:`CARRY`): for the
    pelvis path in feature space (:func:`~emotive.models.lgb.bootstrap.carry_offsets`), for the
@@ -60,12 +66,14 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from dataclasses import fields as dataclass_fields
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
 from emotive.core.motion import Motion
 from emotive.errors import EmotionError
+from emotive.ik.api import IKResult
 from emotive.models.lgb.bootstrap import (
     LGBError,
     LGBSample,
@@ -75,10 +83,16 @@ from emotive.models.lgb.bootstrap import (
     check_finite,
     min_observations,
 )
+from emotive.models.lgb.novelty import (
+    EFFECTORS,
+    WINDOW_SECONDS,
+    NoveltyReference,
+    NoveltyReport,
+)
 
 if TYPE_CHECKING:
     from emotive.data.clips import Clip
-    from emotive.ik import Chain, IKResult, Trajectories
+    from emotive.ik import Chain, Trajectories
 
 #: Order of each process's Markov chain (paper: 3 for the head, 1 for the others; see the
 #: module docstring for why the others use 2).
@@ -102,6 +116,15 @@ CHUNK_FRAMES = 15000
 SPLIT_FRAMES = 3000
 #: Frames each chunk but the first solves before its own first frame and drops.
 OVERLAP_FRAMES = 16
+
+#: Not-a-replay guard (:mod:`emotive.models.lgb.novelty`): windows are checked every this many
+#: frames; a window within this factor of the threshold has the stretch around it redrawn
+#: (this many window lengths each side in the first round, growing by as much each round), for
+#: at most this many rounds.
+GUARD_HOP = 5
+GUARD_MARGIN = 1.1
+GUARD_PAD = 0.5
+GUARD_ROUNDS = 16
 
 #: Frames cross-faded at each junction between clips (half a second at 30 fps).
 BLEND_FRAMES = 15
@@ -361,6 +384,29 @@ def blend_jumps(rotations: np.ndarray, jumps: np.ndarray, carry: float = CARRY) 
     return out
 
 
+class Resampled(NamedTuple):
+    """What :meth:`EmotionResampler.sample_features` returns.
+
+    Attributes:
+        features: ``(T, F)`` resampled feature rows.
+        samples: process name -> its sample (``index`` gives the drawn observations of
+            :attr:`EmotionResampler.observed`).
+        novelty: the not-a-replay guard's report (None when it did not run).
+    """
+
+    features: np.ndarray
+    samples: dict[str, LGBSample]
+    novelty: NoveltyReport | None
+
+
+@dataclass(frozen=True)
+class ResampleResult(IKResult):
+    """:class:`~emotive.ik.IKResult` of resampled motion, with the not-a-replay guard's report
+    (None when it did not run)."""
+
+    novelty: NoveltyReport | None = None
+
+
 @dataclass(eq=False)
 class EmotionResampler:
     """Local Grid Bootstrap of one emotional state's trajectories, rebuilt by IK.
@@ -375,6 +421,8 @@ class EmotionResampler:
         fps: frame rate of the data.
         layout: the feature blocks of :attr:`observed`.
         carry: see :data:`CARRY`.
+        novelty: the captured windows and not-a-replay threshold of the emotion (None when
+            the rig lacks one of the compared effectors).
     """
 
     emotion: str
@@ -385,6 +433,7 @@ class EmotionResampler:
     fps: float
     layout: dict[str, _Column] = field(repr=False)
     carry: float = CARRY
+    novelty: NoveltyReference | None = field(default=None, repr=False)
 
     @classmethod
     def fit(
@@ -483,40 +532,98 @@ class EmotionResampler:
             )
         ref0 = first.replace(rotations=first.rotations[:1].copy(),
                              positions=first.positions[:1].copy())
-        return cls(label, ref0, chains, observed, boots, float(first.fps), layout, carry)
+        novelty = None
+        if all(k in layout for k in EFFECTORS):
+            length = max(2, round(WINDOW_SECONDS * first.fps))
+            novelty = NoveltyReference.fit([r[:, _points(layout)] for r in rows], length)
+        return cls(label, ref0, chains, observed, boots, float(first.fps), layout, carry,
+                   novelty)
 
     def sample_features(
         self, frames: int, seed: int | np.random.Generator | np.random.SeedSequence = 0
-    ) -> tuple[np.ndarray, dict[str, LGBSample]]:
-        """Resample ``frames`` feature rows.
+    ) -> Resampled:
+        """Resample ``frames`` feature rows, with the not-a-replay guard.
+
+        The guard (successor rule, when :attr:`novelty` is known): every
+        :data:`GUARD_HOP`-th window of the effector points whose distance to the nearest
+        captured window is within :data:`GUARD_MARGIN` of the threshold has the stretch around
+        it redrawn for every process (from the frame before the stretch, with a stream of its
+        own), up to :data:`GUARD_ROUNDS` rounds; the chains then jump back to their own draws
+        at the stretch's end, and those jumps fade like any other. The points checked are the
+        drawn observations with each jump's offset fading (:data:`CARRY`), as the rebuilt
+        motion will have them.
 
         Args:
             frames: ``T``, any length.
             seed: the seed (or generator, or seed sequence) every draw comes from; each process
-                gets its own stream spawned from it.
+                gets its own stream spawned from it, and the guard one more.
 
         Returns:
-            ``(T, F)`` rows and each process's raw sample (``index`` gives the drawn
-            observations of :attr:`observed`).
+            The rows, each process's sample and the guard's report.
 
         Raises:
             LGBError: ``frames < 0``.
         """
-        streams = _streams(seed, len(PROCESSES))
+        streams = _streams(seed, len(PROCESSES) + 1)
+        samples = {name: self.bootstraps[name].sample(frames, rng)
+                   for name, rng in zip(PROCESSES, streams, strict=False)}
+        report = None
+        if self.novelty is not None and all(
+                b.rule == "successor" for b in self.bootstraps.values()):
+            samples, report = self._guard(samples, frames, streams[-1])
         out = np.empty((frames, self.observed.shape[1]))
-        samples = {}
-        for (name, (state, passengers)), rng in zip(PROCESSES.items(), streams, strict=True):
-            s = self.bootstraps[name].sample(frames, rng)
-            out[:, _columns(self.layout, state)] = s.states
-            out[:, _columns(self.layout, passengers)] = s.passengers
-            samples[name] = s
+        for name, (state, passengers) in PROCESSES.items():
+            out[:, _columns(self.layout, state)] = samples[name].states
+            out[:, _columns(self.layout, passengers)] = samples[name].passengers
         if self.bootstraps["lower_body"].rule == "successor" and frames:
             index = samples["lower_body"].index
             cols = _columns(self.layout, PELVIS_BLOCKS)
             out[:, cols] = carry_offsets(self.observed[:, cols], index, self.carry, index[0] - 1)
         tilt = out[:, self.layout["pelvis:tilt"].slice]
         tilt /= np.linalg.norm(tilt, axis=-1, keepdims=True)
-        return out, samples
+        return Resampled(out, samples, report)
+
+    def _guard(
+        self, samples: dict[str, LGBSample], frames: int, rng: np.random.Generator
+    ) -> tuple[dict[str, LGBSample], NoveltyReport]:
+        """Redraw the stretches that come too close to a captured window (see
+        :meth:`sample_features`)."""
+        ref = self.novelty
+        index = {name: s.index.copy() for name, s in samples.items()}
+        owner = {k: next(p for p, (state, _) in PROCESSES.items() if k in state)
+                 for k in EFFECTORS}
+        cols = {k: self.layout[k].slice for k in EFFECTORS}
+        pad = max(1, round(GUARD_PAD * ref.length))
+        limit = ref.threshold * GUARD_MARGIN
+        redrawn = rounds = 0
+        while True:
+            # The jumps' offsets fade as they will in the rebuilt motion (smooth_jumps).
+            points = np.concatenate([
+                carry_offsets(self.observed[:, cols[k]], index[owner[k]], self.carry,
+                              index[owner[k]][0] - 1) for k in EFFECTORS], axis=1)
+            starts, dist = ref.novelty(points, GUARD_HOP)
+            bad = starts[dist <= limit]
+            if not len(bad) or rounds == GUARD_ROUNDS:
+                break
+            rounds += 1
+            # A spot that stays too close after a redraw gets a wider one.
+            grow = pad * rounds
+            for a, b in _merge_spans(bad - grow, bad + ref.length + grow, frames):
+                for name, boot in self.bootstraps.items():
+                    start = index[name][a - 1] if a else None
+                    index[name][a:b] = boot.sample(b - a, rng, start=start).index
+                redrawn += 1
+        report = NoveltyReport(
+            threshold=ref.threshold, windows=len(starts), redrawn=redrawn, rounds=rounds,
+            closest=float(dist.min()) if len(dist) else math.inf,
+            below=int((dist <= ref.threshold).sum()),
+        )
+        out = {}
+        for name, (state, passengers) in PROCESSES.items():
+            rows = self.observed[index[name]]
+            out[name] = LGBSample(rows[:, _columns(self.layout, state)], index[name],
+                                  rows[:, _columns(self.layout, passengers)])
+        return out, report
 
     def base_motion(self, features: np.ndarray) -> Motion:
         """``T`` frames of the reference pose with the link joints (clavicles) of the rows."""
@@ -663,7 +770,7 @@ class EmotionResampler:
         workers: int = 1,
         chunk: int | None = None,
         **solver: Any,
-    ) -> IKResult:
+    ) -> ResampleResult:
         """Resample ``frames`` frames and rebuild them into whole-body motion.
 
         Args:
@@ -676,24 +783,43 @@ class EmotionResampler:
             **solver: keyword arguments of :func:`emotive.ik.solver.solve_chain`.
 
         Returns:
-            The IK result (motion, residuals, unreachable and off-target frames); ``seconds``
-            is the wall time of resampling and rebuilding.
+            The IK result (motion, residuals, unreachable and off-target frames) and the
+            not-a-replay guard's report; ``seconds`` is the wall time of resampling and
+            rebuilding.
 
         Raises:
             LGBError: ``frames < 1``.
         """
         import time
-        from dataclasses import replace
 
         if frames < 1:
             raise LGBError(f"the number of frames must be >= 1, got {frames}")
         began = time.perf_counter()
-        features, samples = self.sample_features(frames, seed)
+        features, samples, report = self.sample_features(frames, seed)
         base = self.base_motion(features)
         result = self.rebuild(self.trajectories(features, base), base, workers=workers,
                               chunk=chunk, progress=progress, **solver)
         result = self.smooth_jumps(result, samples)
-        return replace(result, seconds=time.perf_counter() - began)
+        fields = {f.name: getattr(result, f.name) for f in dataclass_fields(result)}
+        return ResampleResult(**fields | {"seconds": time.perf_counter() - began},
+                              novelty=report)
+
+
+def _points(layout: dict[str, _Column]) -> np.ndarray:
+    """Feature columns of the compared effector points (:data:`EFFECTORS`)."""
+    return _columns(layout, EFFECTORS)
+
+
+def _merge_spans(starts: np.ndarray, ends: np.ndarray, frames: int) -> list[tuple[int, int]]:
+    """Sorted ``[a, b)`` spans, clipped to ``[0, frames)``, overlapping ones merged."""
+    spans: list[tuple[int, int]] = []
+    for a, b in sorted(zip(np.maximum(starts, 0).tolist(),
+                           np.minimum(ends, frames).tolist(), strict=True)):
+        if spans and a <= spans[-1][1]:
+            spans[-1] = (spans[-1][0], max(spans[-1][1], b))
+        else:
+            spans.append((a, b))
+    return spans
 
 
 def chunk_starts(frames: int) -> list[int]:

@@ -30,7 +30,8 @@ class MARConfig(DictConfig):
 
     Attributes:
         k: ``K``, nearest neighbours per class.
-        ridge: ``lambda`` of the ridge regression (on standardized degrees of freedom).
+        ridge: ``lambda`` of the ridge regression, in the data's units (applied as
+            ``lambda / sigma_d^2`` to each standardized degree of freedom ``d``).
         delta: kernel width of the mixture weights ``exp(-D_j / (delta min D))``.
         rho: share of the input's bias passed to the output (0: pure style, 1: keep content).
         kappa: half width, in standard deviations of the neighbours, of the confidence

@@ -4,9 +4,13 @@ For one input frame and its neighbours in each class ``j`` (:mod:`emotive.models
 every degree of freedom ``d`` gets, per class and per output style ``o``, the ridge fit
 ``y_t = u_t^T beta``, ``u_t = [x_{t-1}, y_{t-1}, x_t, 1]``, on the neighbours' pairs: ``x`` an
 example frame (and its predecessor) of class ``j``, ``y`` the track of style ``o`` at the same
-canonical times. Degrees of freedom are standardized with the database's mean and spread first,
-so one ridge weight ``lambda`` suits angles and steps alike; the ridge acts on the slopes of
-the regressors centred on the neighbours (the intercept is free, see :func:`ridge_ar`).
+canonical times. Degrees of freedom are standardized with the database's mean and spread
+``sigma_d`` first; ``lambda`` is the paper's, in the data's own units (radians of the
+exponential maps, leg lengths of the root steps), so on the standardized degree of freedom
+``d`` the penalty is ``lambda / sigma_d^2`` (the slopes of one degree of freedom on itself do
+not change with its scale, its squared residuals scale by ``1 / sigma_d^2``). The ridge acts on
+the slopes of the regressors centred on the neighbours (the intercept is free, see
+:func:`ridge_ar`).
 
 Speed: :func:`predict` solves the ``c * o * D`` ridge systems of one frame at once in closed
 form (:func:`ridge_ar3`: centred 3x3 Gram matrices, the input regressors shared by the output
@@ -257,7 +261,8 @@ def predict(
         q1 = (x_prev - dx)[:, None, None]
         q2 = (y_prev - rho * dx)[:, None, None]
         q3 = (x_t - dx)[:, None, None]
-        pose_co = ridge_ar3(xs_p[:, None], y_p, xs_t[:, None], y_t, cfg.ridge, q1, q2, q3) \
+        pose_co = ridge_ar3(xs_p[:, None], y_p, xs_t[:, None], y_t, cfg.ridge / db.std**2,
+                            q1, q2, q3) \
             + rho * dx[:, None]
 
     # Timing (5.1): Gaussian kernel on the four-part distance (input pose and velocity,
