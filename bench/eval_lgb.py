@@ -189,12 +189,11 @@ def replay_stats(model, clips: list, rebuilt: dict, motion, novelty) -> dict:
     """Nearest captured-window distances of the resampled motion (every :data:`REPLAY_HOP`-th
     window of the final, rebuilt motion), the distinct-clip threshold, the replay level and
     the guard's report (:mod:`emotive.models.lgb.novelty`)."""
-    from emotive.models.lgb.model import clip_features
-    from emotive.models.lgb.novelty import EFFECTORS, windows
+    from emotive.models.lgb.model import clip_features, effector_columns
+    from emotive.models.lgb.novelty import windows
 
     ref = model.novelty
-    cols = np.concatenate([np.arange(model.layout[k].start, model.layout[k].start + 3)
-                           for k in EFFECTORS])
+    cols = effector_columns(model.layout)
     rig = model.reference.skeleton
 
     def points(m) -> np.ndarray:

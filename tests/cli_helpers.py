@@ -1,4 +1,5 @@
-"""Helpers of the command tests: run one sub-command, write a BVH file with a NaN frame."""
+"""Helpers of the command tests: run one sub-command, check a one-line failure that wrote
+nothing, write a BVH file with a NaN frame."""
 
 from __future__ import annotations
 
@@ -20,6 +21,16 @@ def invoke_command(name: str, command: Callable, *args: object):
 
     app.command(name)(command)
     return CliRunner().invoke(app, [name, *map(str, args)], env={"COLUMNS": "200"})
+
+
+def assert_failed_cleanly(result, error: type, words, folder: Path, before: list) -> None:
+    """The command failed with ``error``, whose one-line message holds every one of ``words``,
+    and ``folder`` holds what it held ``before`` (no output, no temporary file left)."""
+    assert result.exit_code != 0
+    assert isinstance(result.exception, error), result.exception
+    message = str(result.exception)
+    assert "\n" not in message and all(w in message for w in words), message
+    assert sorted(folder.iterdir()) == before
 
 
 def nan_copy(bvh_file: Path) -> Path:

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cli_helpers import invoke_command, nan_copy
+from cli_helpers import assert_failed_cleanly, invoke_command, nan_copy
 from emotive.commands.reconstruct import reconstruct, summary
 from emotive.core import Motion, Skeleton
 from emotive.errors import BVHError, OutputError, RigError
@@ -146,11 +146,7 @@ def test_bad_input_fails_in_one_line_without_output(walk_file, tmp_path, case, e
         args += ["--preview", tmp_path / "p.png"]
     before = sorted(tmp_path.iterdir())
     result = invoke(*args)
-    assert result.exit_code != 0
-    assert isinstance(result.exception, error), result.exception
-    message = str(result.exception)
-    assert "\n" not in message and all(w in message for w in words), message
-    assert sorted(tmp_path.iterdir()) == before  # no output, no temporary file left
+    assert_failed_cleanly(result, error, words, tmp_path, before)
 
 
 def test_the_console_entry_point_prints_one_error_line(tmp_path, monkeypatch, capsys):

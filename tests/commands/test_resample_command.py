@@ -8,7 +8,7 @@ import sys
 import numpy as np
 import pytest
 
-from cli_helpers import invoke_command
+from cli_helpers import assert_failed_cleanly, invoke_command
 from emotive.commands.resample import resample
 from emotive.errors import EmotionError, OutputError
 from emotive.io.bvh import read_bvh
@@ -102,11 +102,7 @@ def test_bad_input_fails_in_one_line_without_output(fake_data, tmp_path, args, e
         out = tmp_path / f"out{args[i + 1]}"
         del args[i : i + 2]
     result = invoke(*args, "--out", out, "--workers", 1)
-    assert result.exit_code != 0
-    assert isinstance(result.exception, error), result.exception
-    message = str(result.exception)
-    assert "\n" not in message and all(w in message for w in words), message
-    assert list(tmp_path.iterdir()) == []  # no output, no temporary file left
+    assert_failed_cleanly(result, error, words, tmp_path, [])
 
 
 def test_the_console_entry_point_prints_one_error_line(fake_data, tmp_path, monkeypatch,

@@ -17,7 +17,7 @@ from emotive.models.mar.representation import RigMappingError
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "models" / "mar"))
 from mar_helpers import CONFIG, examples, styled
 
-from cli_helpers import invoke_command, nan_copy
+from cli_helpers import assert_failed_cleanly, invoke_command, nan_copy
 
 
 @pytest.fixture(scope="module")
@@ -110,11 +110,7 @@ def test_bad_input_fails_in_one_line_without_output(
         args[-1] = tmp_path / "missing.npz"
     before = sorted(tmp_path.iterdir())
     result = invoke(*args)
-    assert result.exit_code != 0
-    assert isinstance(result.exception, error), result.exception
-    message = str(result.exception)
-    assert "\n" not in message and all(w in message for w in words), message
-    assert sorted(tmp_path.iterdir()) == before  # no output, no temporary file left
+    assert_failed_cleanly(result, error, words, tmp_path, before)
 
 
 def test_the_index_is_built_in_the_cache_on_request(tmp_path, monkeypatch):

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 import torch
 
+from cli_helpers import assert_failed_cleanly
 from emotive.core import Motion, Skeleton
 from emotive.core.ops import canonicalize_facing
 from emotive.errors import DataError, EmotionError, RigError
@@ -297,11 +298,7 @@ def test_generate_command_errors_write_nothing(checkpoint, tmp_path, args, error
         args += ["--model", checkpoint]
     before = sorted(tmp_path.iterdir())
     result = invoke_fcrbm("generate", *args, "--seconds", 1, "--out", tmp_path / "x.bvh")
-    assert result.exit_code != 0
-    assert isinstance(result.exception, error), result.exception
-    message = str(result.exception)
-    assert "\n" not in message and all(w in message for w in words), message
-    assert sorted(tmp_path.iterdir()) == before
+    assert_failed_cleanly(result, error, words, tmp_path, before)
 
 
 def test_generate_command_refuses_a_primer_from_another_rig(checkpoint, tmp_path):

@@ -10,7 +10,7 @@ import pytest
 
 from emotive.models.lgb import model as lgb_model
 from emotive.models.lgb.model import EmotionResampler
-from emotive.models.lgb.novelty import EFFECTORS, NoveltyReference, nearest_distance, windows
+from emotive.models.lgb.novelty import NoveltyReference, nearest_distance, windows
 
 
 @pytest.fixture(scope="module")
@@ -19,9 +19,7 @@ def model(sad_clips) -> EmotionResampler:
 
 
 def _points(model: EmotionResampler, features: np.ndarray) -> np.ndarray:
-    cols = np.concatenate([np.arange(model.layout[k].start, model.layout[k].start + 3)
-                           for k in EFFECTORS])
-    return features[:, cols]
+    return features[:, lgb_model.effector_columns(model.layout)]
 
 
 def test_windows_are_frame_major_and_hop():

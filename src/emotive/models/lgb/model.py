@@ -535,7 +535,7 @@ class EmotionResampler:
         novelty = None
         if all(k in layout for k in EFFECTORS):
             length = max(2, round(WINDOW_SECONDS * first.fps))
-            novelty = NoveltyReference.fit([r[:, _points(layout)] for r in rows], length)
+            novelty = NoveltyReference.fit([r[:, effector_columns(layout)] for r in rows], length)
         return cls(label, ref0, chains, observed, boots, float(first.fps), layout, carry,
                    novelty)
 
@@ -564,13 +564,13 @@ class EmotionResampler:
         Raises:
             LGBError: ``frames < 0``.
         """
-        streams = _streams(seed, len(PROCESSES) + 1)
+        *streams, guard_stream = _streams(seed, len(PROCESSES) + 1)
         samples = {name: self.bootstraps[name].sample(frames, rng)
-                   for name, rng in zip(PROCESSES, streams, strict=False)}
+                   for name, rng in zip(PROCESSES, streams, strict=True)}
         report = None
         if self.novelty is not None and all(
                 b.rule == "successor" for b in self.bootstraps.values()):
-            samples, report = self._guard(samples, frames, streams[-1])
+            samples, report = self._guard(samples, frames, guard_stream)
         out = np.empty((frames, self.observed.shape[1]))
         for name, (state, passengers) in PROCESSES.items():
             out[:, _columns(self.layout, state)] = samples[name].states
@@ -805,8 +805,8 @@ class EmotionResampler:
                               novelty=report)
 
 
-def _points(layout: dict[str, _Column]) -> np.ndarray:
-    """Feature columns of the compared effector points (:data:`EFFECTORS`)."""
+def effector_columns(layout: dict[str, _Column]) -> np.ndarray:
+    """Feature columns of the not-a-replay effector points (:data:`EFFECTORS`), ``(3P,)``."""
     return _columns(layout, EFFECTORS)
 
 
