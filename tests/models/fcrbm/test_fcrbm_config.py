@@ -33,8 +33,14 @@ def test_from_dict_rejects_unknown_keys() -> None:
 @pytest.mark.parametrize(
     ("field", "value"),
     [("visible", 0), ("order", -1), ("hidden", 2.5), ("cd_steps", 0), ("momentum", 1.0),
-     ("learning_rate", 0.0), ("weight_decay", -1e-3)],
+     ("learning_rate", 0.0), ("weight_decay", -1e-3), ("visible_autoregression", 1)],
 )  # fmt: skip
 def test_invalid_values_raise(field: str, value: object) -> None:
     with pytest.raises(ValueError, match=field):
         FCRBMConfig(**{"visible": 3, field: value})
+
+
+def test_checkpoints_from_before_the_switch_keep_the_papers_model() -> None:
+    data = FCRBMConfig(visible=3).to_dict()
+    del data["visible_autoregression"]
+    assert FCRBMConfig.from_dict(data).visible_autoregression is True

@@ -260,3 +260,43 @@ def test_limiting_the_radius_rescales_the_momentum_with_the_weights(model: FCRBM
     # Every lag's momentum is scaled like its weights: by s^k, s = 0.5 / rho, k = N..1.
     expected = (0.5 / rho) ** torch.arange(model.config.order, 0, -1, dtype=torch.float32)
     torch.testing.assert_close(lags, expected[:, None].expand_as(lags), rtol=1e-4, atol=1e-6)
+
+
+@pytest.fixture
+def model_without_ar(model: FCRBM) -> FCRBM:
+    m = FCRBM(replace(model.config, visible_autoregression=False)).double()
+    with torch.no_grad():
+        m.vis_bias.copy_(model.vis_bias)
+        m.hid_bias.copy_(model.hid_bias)
+    return m
+
+
+def test_without_visible_autoregression_the_visible_bias_is_static(model_without_ar, batch):
+    v, past, z = batch
+    m = model_without_ar
+    names = {n for n, _ in m.named_parameters()}
+    assert not names & {"a_past", "a_vis", "a_ctx"}
+    a_hat, b_hat = m.dynamic_biases(past, z)
+    assert torch.equal(a_hat, m.vis_bias.expand(B, D))
+    _, b_other = m.dynamic_biases(past + 1.0, z)
+    assert not torch.allclose(b_hat, b_other)  # the past still drives the hidden units
+    grads, _ = m.cd_gradients(v, past, z, generator=torch.Generator().manual_seed(0))
+    assert set(grads) == names
+    before = {n: p.clone() for n, p in m.named_parameters()}
+    m.train_step(v, past, z, generator=torch.Generator().manual_seed(0))
+    assert all(not torch.equal(p, before[n]) for n, p in m.named_parameters())
+    assert float(m.ar_spectral_radius(z).max()) == 0.0
+    assert m.limit_ar_radius(z, 0.5) == 0.0
+
+
+def test_without_visible_autoregression_generation_is_bounded(model_without_ar, batch) -> None:
+    _, past, z = batch
+    m = model_without_ar
+    with torch.no_grad():
+        for p in m.parameters():
+            p.mul_(4.0)  # far larger weights than training leaves
+    out = m.generate(100.0 * past, 3.5 * torch.ones_like(z), steps=300)
+    # v = a + ((h Wh) * zf) Wvᵀ with h in [0, 1]: every frame within the sum of magnitudes.
+    zf = (3.5 * torch.ones_like(z)) @ m.w_ctx
+    bound = ((m.w_hid.abs().sum(0) * zf.abs()) @ m.w_vis.abs().T)
+    assert torch.all((out - m.vis_bias).abs() <= bound[:, None] + 1e-9)

@@ -28,6 +28,7 @@ from emotive.models.fcrbm.model import FCRBMConfig
 from emotive.models.fcrbm.training import (
     FCRBMData,
     FCRBMTrainSettings,
+    export_fcrbm_checkpoint,
     load_fcrbm_checkpoint,
     load_fcrbm_settings,
     train_fcrbm,
@@ -210,6 +211,29 @@ def test_training_writes_checkpoints_resumes_and_generates(tmp_path):
         seed_frames(model, walk(3))
 
 
+def test_training_without_visible_autoregression(tmp_path):
+    config = FCRBMConfig(visible=1, order=3, hidden=16, factors=8, factors_past_visible=8,
+                         factors_past_hidden=8, gibbs=3, init_std=0.1,
+                         visible_autoregression=False)
+    result = train_fcrbm(config, FCRBMTrainSettings(epochs=2, batch_size=32), progress=False,
+                         out_dir=tmp_path, data=synthetic_data(config.order))
+    assert [r["ar_radius"] for r in result.history] == [0.0, 0.0]
+    network, codec, _ = load_fcrbm_checkpoint(tmp_path / "last.pt")
+    assert not network.config.visible_autoregression and not hasattr(network, "a_past")
+    for name, value in network.state_dict().items():
+        torch.testing.assert_close(value, result.model.state_dict()[name])
+    motion, frames = generate_motion(FCRBMModel(network, codec), constant_context(3.5, 3.5, 60))
+    assert motion.num_frames == 60 and np.isfinite(frames).all()
+    slim = export_fcrbm_checkpoint(tmp_path / "last.pt", tmp_path / "slim.pt")
+    assert "velocity" not in torch.load(slim, weights_only=True)
+    again, _ = generate_motion(FCRBMModel(*load_fcrbm_checkpoint(slim)[:2]),
+                               constant_context(3.5, 3.5, 60))
+    np.testing.assert_allclose(again.positions, motion.positions, atol=1e-5)
+    with pytest.raises(ConfigError, match="not a usable FCRBM"):
+        export_fcrbm_checkpoint(tmp_path / "log.csv", tmp_path / "bad.pt")
+    assert not (tmp_path / "bad.pt").exists()
+
+
 def test_divergence_is_a_clear_error(tmp_path):
     config = FCRBMConfig(visible=1, order=3, hidden=8, factors=4, factors_past_visible=4,
                          factors_past_hidden=4, gibbs=2)
@@ -227,7 +251,8 @@ def test_divergence_is_a_clear_error(tmp_path):
 
 def test_settings_file(tmp_path):
     config, settings = load_fcrbm_settings("configs/fcrbm.toml")
-    assert (config.order, config.hidden, config.factors) == (6, 400, 300)
+    assert (config.order, config.hidden, config.factors) == (3, 400, 300)
+    assert not config.visible_autoregression
     assert settings.contents == ("walk",)
     bad = tmp_path / "bad.toml"
     bad.write_text("[model]\nvisible = 5\n")

@@ -23,6 +23,15 @@ applied by hand as momentum SGD with L2 weight decay on the weights (not on the 
 Taylor's code. Generation runs alternating Gibbs sampling per frame: sampled binary hidden
 units, mean-field (noise-free) visible units, and hidden probabilities in the last step.
 
+**Deviation (optional): no past-to-visible term.** With ``visible_autoregression=False`` the
+past-to-visible factors are left out: ``â = a``, the hidden units carry all the dynamics, and
+a generated frame is the static bias plus a weighted sum of hidden units in ``[0, 1]``, so it
+is bounded by construction whatever the context. With the term, the linear part's gain is
+proportional to the context (``A(z)`` has no context-free part) and on the Bandai Namco walks
+its spectral radius grew past 1 at the higher valence/arousal values (1.1 at (2, 2), 1.8 at
+(3, 3)): every sequence diverged there, and scaling it back below 1 damped the gait to a still
+pose.
+
 Legend: ``B`` batch, ``T`` frames, ``N`` order (past frames), ``D`` visible units, ``H`` hidden
 units, ``F`` factors, ``C`` context size. A past window ``(B, N, D)`` is in time order: index
 ``-1`` is the frame just before the current one.
@@ -59,6 +68,8 @@ class FCRBMConfig:
         gibbs: alternating Gibbs iterations per generated frame.
         init_std: standard deviation of the initial weights.
         seed: seed of the initial weights and of the default sampling generator.
+        visible_autoregression: keep the past-to-visible interaction (the paper's model);
+            ``False`` leaves it out (see the module docstring).
     """
 
     visible: int
@@ -75,6 +86,7 @@ class FCRBMConfig:
     gibbs: int = 30
     init_std: float = 0.01
     seed: int = 0
+    visible_autoregression: bool = True
 
     def __post_init__(self) -> None:
         sizes = (
@@ -90,6 +102,9 @@ class FCRBMConfig:
                 raise ValueError(f"FCRBMConfig.{name} must be > 0, got {getattr(self, name)!r}")
         if not 0 <= self.momentum < 1:
             raise ValueError(f"FCRBMConfig.momentum must be in [0, 1), got {self.momentum!r}")
+        if not isinstance(self.visible_autoregression, bool):
+            raise ValueError(f"FCRBMConfig.visible_autoregression must be true or false, got "
+                             f"{self.visible_autoregression!r}")
         if not self.weight_decay >= 0:
             raise ValueError(f"FCRBMConfig.weight_decay must be >= 0, got {self.weight_decay!r}")
 
@@ -107,11 +122,8 @@ class FCRBMConfig:
         return cls(**data)
 
 
-_WEIGHTS = (
-    "w_vis", "w_hid", "w_ctx",
-    "a_past", "a_vis", "a_ctx",
-    "b_past", "b_hid", "b_ctx",
-)  # fmt: skip
+_AUTOREGRESSIVE = ("a_past", "a_vis", "a_ctx")
+_WEIGHTS = ("w_vis", "w_hid", "w_ctx", *_AUTOREGRESSIVE, "b_past", "b_hid", "b_ctx")
 _BIASES = ("vis_bias", "hid_bias")
 
 
@@ -125,7 +137,8 @@ class FCRBM(nn.Module):
         vis_bias: ``(D,)`` static visible bias ``a``.
         hid_bias: ``(H,)`` static hidden bias ``b``.
         w_vis, w_hid, w_ctx: ``(D, F)``, ``(H, F)``, ``(C, F)``, visible-hidden-context factors.
-        a_past, a_vis, a_ctx: ``(N*D, Fa)``, ``(D, Fa)``, ``(C, Fa)``, past-to-visible factors.
+        a_past, a_vis, a_ctx: ``(N*D, Fa)``, ``(D, Fa)``, ``(C, Fa)``, past-to-visible factors
+            (absent without ``config.visible_autoregression``).
         b_past, b_hid, b_ctx: ``(N*D, Fb)``, ``(H, Fb)``, ``(C, Fb)``, past-to-hidden factors.
     """
 
@@ -146,7 +159,12 @@ class FCRBM(nn.Module):
             "b_hid": (c.hidden, c.factors_past_hidden),
             "b_ctx": (c.context, c.factors_past_hidden),
         }
+        self.weight_names = tuple(
+            n for n in _WEIGHTS if c.visible_autoregression or n not in _AUTOREGRESSIVE
+        )
         for name, shape in shapes.items():
+            if name not in self.weight_names:
+                continue
             self.register_parameter(
                 name, nn.Parameter(torch.randn(shape, generator=gen) * c.init_std)
             )
@@ -195,7 +213,10 @@ class FCRBM(nn.Module):
         return self._biases(p.reshape(p.shape[0], -1), z)
 
     def _biases(self, p: Tensor, z: Tensor) -> tuple[Tensor, Tensor]:
-        a_hat = self.vis_bias + ((p @ self.a_past) * (z @ self.a_ctx)) @ self.a_vis.T
+        if self.config.visible_autoregression:
+            a_hat = self.vis_bias + ((p @ self.a_past) * (z @ self.a_ctx)) @ self.a_vis.T
+        else:
+            a_hat = self.vis_bias.expand(p.shape[0], -1)
         b_hat = self.hid_bias + ((p @ self.b_past) * (z @ self.b_ctx)) @ self.b_hid.T
         return a_hat, b_hat
 
@@ -308,7 +329,7 @@ class FCRBM(nn.Module):
             loss = (
                 self._free_energy(vt, zf, a_hat, b_hat) - self._free_energy(neg, zf, a_hat, b_hat)
             ).mean()
-            names = [*_WEIGHTS, *_BIASES]
+            names = [*self.weight_names, *_BIASES]
             grads = torch.autograd.grad(loss, [getattr(self, n) for n in names])
         return dict(zip(names, grads, strict=True)), recon_error
 
@@ -338,7 +359,7 @@ class FCRBM(nn.Module):
         with torch.no_grad():
             for name, grad in grads.items():
                 param = getattr(self, name)
-                step = grad + c.weight_decay * param if name in _WEIGHTS else grad
+                step = grad + c.weight_decay * param if name in self.weight_names else grad
                 vel = self._velocity.get(name)
                 vel = (
                     -c.learning_rate * step
@@ -363,14 +384,17 @@ class FCRBM(nn.Module):
             context: ``(B, C)`` contexts.
 
         Returns:
-            ``(B, N*D, N*D)`` companion matrices acting on the flattened past (time order).
+            ``(B, N*D, N*D)`` companion matrices acting on the flattened past (time order);
+            without ``config.visible_autoregression`` the lags' blocks are zero.
         """
         c = self.config
         z = self._tensor(context, "context", (None, c.context))
         nd = c.order * c.visible
-        blocks = torch.einsum("pf,bf,df->bdp", self.a_past, z @ self.a_ctx, self.a_vis)
-        comp = torch.zeros(z.shape[0], nd, nd, dtype=blocks.dtype, device=blocks.device)
+        comp = torch.zeros(z.shape[0], nd, nd, dtype=z.dtype, device=z.device)
         comp[:, : nd - c.visible, c.visible :] = torch.eye(nd - c.visible)
+        if not c.visible_autoregression:
+            return comp
+        blocks = torch.einsum("pf,bf,df->bdp", self.a_past, z @ self.a_ctx, self.a_vis)
         comp[:, nd - c.visible :, :] = blocks
         return comp
 
@@ -396,7 +420,7 @@ class FCRBM(nn.Module):
             radius: the bound, in ``(0, 1]``.
         """
         rho = float(self.ar_spectral_radius(contexts).max())
-        if rho > radius:
+        if rho > radius and self.config.visible_autoregression:
             c = self.config
             lags = torch.arange(c.order, 0, -1, dtype=self.a_past.dtype, device=self.a_past.device)
             scale = (radius / rho) ** lags

@@ -67,7 +67,9 @@ class FCRBMTrainSettings:
         past_noise: standard deviation (standardized units) of Gaussian noise added to the
             past frames of every training example, so that the model learns to pull
             generated frames back towards the data instead of amplifying its own errors.
-        max_ar_radius: after every epoch the autoregressive weights are scaled so that the
+        max_ar_radius: with the past-to-visible term
+            (:attr:`~emotive.models.fcrbm.model.FCRBMConfig.visible_autoregression`), after
+            every epoch the autoregressive weights are scaled so that the
             spectral radius of their companion matrix is at most this at every context of
             the grid :data:`STABLE_AXIS` x :data:`STABLE_AXIS`
             (:meth:`~emotive.models.fcrbm.model.FCRBM.limit_ar_radius`): generation cannot
@@ -243,6 +245,24 @@ def load_fcrbm_checkpoint(path: str | Path) -> tuple[FCRBM, FrameCodec, dict[str
     return model, codec, ckpt
 
 
+#: What a committed checkpoint keeps (no momentum or random state).
+EXPORTED_KEYS = ("kind", "config", "train", "codec", "state", "epoch", "best_val", "history",
+                 "seed")
+
+
+def export_fcrbm_checkpoint(source: str | Path, out: str | Path) -> Path:
+    """Write the generation part of an FCRBM training checkpoint (:data:`EXPORTED_KEYS`,
+    float32) to ``out``, atomically.
+
+    Raises:
+        ConfigError: as :func:`load_fcrbm_checkpoint`.
+    """
+    from emotive.models.gait.model import slim_checkpoint
+
+    load_fcrbm_checkpoint(source)
+    return slim_checkpoint(source, out, EXPORTED_KEYS)
+
+
 def train_fcrbm(
     config: FCRBMConfig,
     settings: FCRBMTrainSettings,
@@ -316,6 +336,8 @@ def train_fcrbm(
                     disable=not progress, transient=True)
     n_batches = math.ceil(len(v) / settings.batch_size)
     corners = stable_corners()
+    # Without the past-to-visible term there is no linear part to keep stable.
+    project = config.visible_autoregression
     epoch, epoch_state, dirty = start_epoch, rng_state(), False
     try:
         with bars:
@@ -336,12 +358,14 @@ def train_fcrbm(
                         p = p + settings.past_noise * torch.randn(p.shape, generator=gen)
                     errors.append(model.train_step(v[idx], p, ctx[idx], gen))
                     dirty = True
-                    if settings.project_every and (k + 1) % settings.project_every == 0:
+                    if project and settings.project_every and (
+                            (k + 1) % settings.project_every == 0):
                         model.limit_ar_radius(corners, settings.max_ar_radius)
                     bars.update(batch_task, advance=1, info=f"reconstruction {np.mean(errors):.4g}")
                     if on_batch is not None:
                         on_batch(epoch, k)
-                radius = model.limit_ar_radius(stable_grid(), settings.max_ar_radius)
+                radius = (model.limit_ar_radius(stable_grid(), settings.max_ar_radius)
+                          if project else 0.0)
                 val_error = one_step_error(model, *val, seed=seed)
                 row = {"epoch": epoch + 1, "train_reconstruction": float(np.mean(errors)),
                        "val_one_step": val_error, "ar_radius": radius,
