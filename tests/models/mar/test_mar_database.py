@@ -62,3 +62,30 @@ def test_bad_files_labels_and_configs_raise_typed_errors(mar_db, tmp_path):
     one_style = [e for e in examples(1) if e.style == "neutral"]
     with pytest.raises(TransferError, match="at least two styles"):
         build_database(one_style, CONFIG)
+
+
+def test_a_cycle_track_weighs_every_take_alike():
+    """A fast and a slow take, three cycles each: the track's swing and duration are the
+    plain means of the takes' (pooling their frames would weigh the slow take twice as
+    much: a swing of 1.0 and 1.11 frames per canonical frame)."""
+    from emotive.models.mar.database import _cycle_track
+    from emotive.models.mar.registration import GaitCycle
+
+    cycle = GaitCycle(30.0, 15.0)
+    encoded, taus, rates = [], [], []
+    for period, amplitude in ((20, 2.0), (40, 0.5)):
+        t = np.arange(3 * period + 2)
+        phase = (t - 1) * cycle.length / period  # left strikes at 1, 1 + period, ...
+        vectors = amplitude * np.sin(2 * np.pi * phase / cycle.length)[:, None]
+        contacts = np.zeros((len(t), 2), dtype=bool)
+        for k in range(3):
+            contacts[1 + k * period:1 + k * period + period // 4, 0] = True
+            contacts[1 + k * period + period // 2:1 + k * period + 3 * period // 4, 1] = True
+        encoded.append((vectors, None, contacts))
+        taus.append(cycle.wrap(phase))
+        rates.append(np.full(len(t), cycle.length / period))
+    pose, per, _ = _cycle_track([0, 1], cycle, encoded, taus, rates)
+    assert pose.shape == (31, 1)
+    swing = np.sin(2 * np.pi * np.arange(30) / 30.0)
+    assert pose[:30, 0] @ swing / (swing @ swing) == pytest.approx(1.25, abs=0.05)
+    np.testing.assert_allclose(per, 1.0, atol=0.03)  # (20 + 40) / 2 frames per 30

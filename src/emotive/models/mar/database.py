@@ -6,7 +6,7 @@ frame the index holds its pose vector and point cloud (:mod:`emotive.models.mar.
 its class, its canonical time and time rate from the registration
 (:mod:`emotive.models.mar.registration`) and its foot contacts
 (:func:`emotive.features.contacts.foot_contacts`). For every class it holds the *track* on the
-canonical timeline: for gaits (registered by cycles) the mean cycle of the class's examples,
+canonical timeline: for gaits (registered by cycles) the mean of the class's examples' cycles,
 one row per canonical frame plus a closing row; for other actions the class's representative
 example (the one warped most cheaply onto the reference); each row holds a pose vector,
 frames per canonical frame and contacts. Pairs for the regression come from these: an
@@ -544,13 +544,19 @@ def _cycle_track(cands: list[int], cycle: GaitCycle, encoded: list, taus: list[n
     ``(L + 1, 2)``, ``L`` the cycle length (the last row repeats the first, so that linear
     interpolation at any canonical time in ``[0, L)`` needs no wrap).
 
-    Every example frame is splatted linearly onto the two canonical frames around its
-    canonical time; frames outside the clip's foot strikes weigh :data:`OUTSIDE_STRIKES`.
+    The track is the mean of the examples' own mean cycles, every example (take) weighing
+    the same. Within an example, every frame is splatted linearly onto the two canonical
+    frames around its canonical time; frames outside the clip's foot strikes weigh
+    :data:`OUTSIDE_STRIKES`. Pooling the frames of all examples instead weighed each take by
+    its frames per canonical frame times its cycles, so the style's pose and timing leaned
+    towards its slowest takes: of dataset 1's two angry walks (2.5 and 1.7 steps per second,
+    arm swing ranges 1.58 and 0.47 database spreads) the pooled track kept a range of 0.76
+    (0.90 now).
     """
     length = round(cycle.length)
     dim = encoded[cands[0]][0].shape[1]
-    total = np.zeros((length, dim + 3))
-    weight = np.zeros(length)
+    grid = np.arange(length)
+    mean = np.zeros((length, dim + 3))
     for i in cands:
         vectors, _, contacts = encoded[i][:3]
         frames, _ = strike_events(contacts)
@@ -560,16 +566,17 @@ def _cycle_track(cands: list[int], cycle: GaitCycle, encoded: list, taus: list[n
                                contacts.astype(np.float64)), 1)
         lo = np.floor(taus[i]).astype(np.int64)
         a = taus[i] - lo
+        total = np.zeros((length, dim + 3))
+        weight = np.zeros(length)
         for shift, share in ((0, 1.0 - a), (1, a)):
             idx = (lo + shift) % length
             np.add.at(total, idx, (w * share)[:, None] * rows)
             np.add.at(weight, idx, w * share)
-    filled = weight > 1e-9
-    grid = np.arange(length)
-    mean = np.empty_like(total)
-    for col in range(total.shape[1]):
-        mean[:, col] = np.interp(grid, grid[filled], total[filled, col] / weight[filled],
-                                 period=length)
+        filled = weight > 1e-9
+        for col in range(total.shape[1]):
+            mean[:, col] += np.interp(grid, grid[filled], total[filled, col] / weight[filled],
+                                      period=length)
+    mean /= len(cands)
     mean = np.concatenate((mean, mean[:1]))
     return mean[:, :dim], mean[:, dim], mean[:, dim + 1:]
 
