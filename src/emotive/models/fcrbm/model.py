@@ -401,7 +401,11 @@ class FCRBM(nn.Module):
     @torch.no_grad()
     def ar_spectral_radius(self, context: Any) -> Tensor:
         """``(B,)`` spectral radius of :meth:`ar_companion` at each context: below 1, the
-        linear part of the dynamics is stable there."""
+        linear part of the dynamics is stable there. Without
+        ``config.visible_autoregression`` the companion is a pure shift: 0 everywhere."""
+        if not self.config.visible_autoregression:
+            z = self._tensor(context, "context", (None, self.config.context))
+            return torch.zeros(z.shape[0], dtype=z.dtype, device=z.device)
         return torch.linalg.eigvals(self.ar_companion(context).double()).abs().amax(-1).float()
 
     @torch.no_grad()
@@ -420,7 +424,7 @@ class FCRBM(nn.Module):
             radius: the bound, in ``(0, 1]``.
         """
         rho = float(self.ar_spectral_radius(contexts).max())
-        if rho > radius and self.config.visible_autoregression:
+        if rho > radius:
             c = self.config
             lags = torch.arange(c.order, 0, -1, dtype=self.a_past.dtype, device=self.a_past.device)
             scale = (radius / rho) ** lags

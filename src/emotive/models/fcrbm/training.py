@@ -336,8 +336,6 @@ def train_fcrbm(
                     disable=not progress, transient=True)
     n_batches = math.ceil(len(v) / settings.batch_size)
     corners = stable_corners()
-    # Without the past-to-visible term there is no linear part to keep stable.
-    project = config.visible_autoregression
     epoch, epoch_state, dirty = start_epoch, rng_state(), False
     try:
         with bars:
@@ -358,14 +356,12 @@ def train_fcrbm(
                         p = p + settings.past_noise * torch.randn(p.shape, generator=gen)
                     errors.append(model.train_step(v[idx], p, ctx[idx], gen))
                     dirty = True
-                    if project and settings.project_every and (
-                            (k + 1) % settings.project_every == 0):
+                    if settings.project_every and (k + 1) % settings.project_every == 0:
                         model.limit_ar_radius(corners, settings.max_ar_radius)
                     bars.update(batch_task, advance=1, info=f"reconstruction {np.mean(errors):.4g}")
                     if on_batch is not None:
                         on_batch(epoch, k)
-                radius = (model.limit_ar_radius(stable_grid(), settings.max_ar_radius)
-                          if project else 0.0)
+                radius = model.limit_ar_radius(stable_grid(), settings.max_ar_radius)
                 val_error = one_step_error(model, *val, seed=seed)
                 row = {"epoch": epoch + 1, "train_reconstruction": float(np.mean(errors)),
                        "val_one_step": val_error, "ar_radius": radius,
