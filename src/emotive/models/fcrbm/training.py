@@ -22,7 +22,6 @@ Legend: ``T`` frames, ``D`` visible units, ``N`` order, ``M`` examples.
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
@@ -32,12 +31,11 @@ import numpy as np
 import torch
 
 from emotive.errors import DataError
+from emotive.models.epochs import EpochOutcome, TrainingLog, resumed_log, run_epochs
 from emotive.models.fcrbm.data import FrameCodec, clip_context, frame_vectors
 from emotive.models.fcrbm.model import FCRBM, FCRBMConfig, sliding_windows
 from emotive.models.gait.training import (
     ConfigError,
-    _save,
-    _write_csv,
     load_settings,
     training_paths,
 )
@@ -290,11 +288,8 @@ def train_fcrbm(
         ConfigError: ``resume`` without a last checkpoint or with other settings.
         KeyboardInterrupt: after writing ``last.pt`` (Ctrl-C).
     """
-    from rich.console import Console
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
-
     out_dir = Path(out_dir)
-    last_path, best_path, csv_path = training_paths(out_dir, resume)
+    last_path = training_paths(out_dir, resume)
     data = data if data is not None else load_fcrbm_data(settings, progress)
     config = replace(config, visible=data.codec.dim, seed=seed)
     v, past, ctx = data.examples("train", config.order)
@@ -305,8 +300,7 @@ def train_fcrbm(
     rng = np.random.default_rng(seed)
     gen = torch.Generator().manual_seed(seed)
     model = FCRBM(config)
-    history: list[dict[str, float]] = []
-    best_val, start_epoch = math.inf, 0
+    log = TrainingLog()
     if resume:
         _, _, ckpt = load_fcrbm_checkpoint(last_path)
         if ckpt["config"] != config.to_dict() or ckpt["train"] != settings.to_dict() | {
@@ -316,79 +310,45 @@ def train_fcrbm(
         model._velocity = dict(ckpt["velocity"])
         rng.bit_generator.state = ckpt["rng"]["numpy"]
         gen.set_state(ckpt["rng"]["torch"])
-        start_epoch, best_val = int(ckpt["epoch"]), float(ckpt["best_val"])
-        history = list(ckpt["history"])[:start_epoch]
+        log = resumed_log(ckpt)
 
     def checkpoint(epoch: int, rng_state: dict[str, Any]) -> dict[str, Any]:
         return {
             "kind": KIND, "config": config.to_dict(), "train": settings.to_dict(),
             "codec": data.codec.to_dict(), "state": model.state_dict(),
             "velocity": dict(model._velocity), "epoch": epoch, "rng": rng_state,
-            "best_val": best_val, "history": history, "seed": seed,
+            "best_val": log.best_val, "history": log.history, "seed": seed,
         }
 
-    def rng_state() -> dict[str, Any]:
-        return {"numpy": rng.bit_generator.state, "torch": gen.get_state()}
-
-    console = Console(stderr=True)
-    bars = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
-                    TimeElapsedColumn(), TextColumn("{task.fields[info]}"), console=console,
-                    disable=not progress, transient=True)
     n_batches = math.ceil(len(v) / settings.batch_size)
     corners = stable_corners()
-    epoch, epoch_state, dirty = start_epoch, rng_state(), False
-    try:
-        with bars:
-            epochs_task = bars.add_task("epochs", total=settings.epochs, completed=start_epoch,
-                                        info="")
-            batch_task = bars.add_task("batches", total=n_batches, info="")
-            for epoch in range(start_epoch, settings.epochs):
-                epoch_state = rng_state()
-                began = time.perf_counter()
-                order = rng.permutation(len(v))
-                bars.reset(batch_task, total=n_batches)
-                errors = []
-                for k in range(n_batches):
-                    idx = torch.from_numpy(order[k * settings.batch_size:
-                                                 (k + 1) * settings.batch_size])
-                    p = past[idx]
-                    if settings.past_noise:
-                        p = p + settings.past_noise * torch.randn(p.shape, generator=gen)
-                    errors.append(model.train_step(v[idx], p, ctx[idx], gen))
-                    dirty = True
-                    if settings.project_every and (k + 1) % settings.project_every == 0:
-                        model.limit_ar_radius(corners, settings.max_ar_radius)
-                    bars.update(batch_task, advance=1, info=f"reconstruction {np.mean(errors):.4g}")
-                    if on_batch is not None:
-                        on_batch(epoch, k)
-                radius = model.limit_ar_radius(stable_grid(), settings.max_ar_radius)
-                val_error = one_step_error(model, *val, seed=seed)
-                row = {"epoch": epoch + 1, "train_reconstruction": float(np.mean(errors)),
-                       "val_one_step": val_error, "ar_radius": radius,
-                       "seconds": round(time.perf_counter() - began, 3)}
-                history.append(row)
-                score = val_error if math.isfinite(val_error) else row["train_reconstruction"]
-                improved = score < best_val
-                best_val = min(best_val, score)
-                done = checkpoint(epoch + 1, rng_state())
-                if improved:
-                    _save(best_path, done)
-                _save(last_path, done)
-                dirty = False
-                _write_csv(csv_path, history, CSV_COLUMNS)
-                summary = (f"reconstruction {row['train_reconstruction']:.4g}  one-step "
-                           f"{val_error:.4g}  AR radius {radius:.3f}"
-                           + ("  (best)" if improved else ""))
-                bars.update(epochs_task, advance=1, info=summary)
-                if progress:
-                    bars.console.print(f"epoch {epoch + 1}/{settings.epochs}: {summary}")
-    except KeyboardInterrupt:
-        if dirty:
-            del history[epoch:]
-            _save(last_path, checkpoint(epoch, epoch_state))
-            _write_csv(csv_path, history, CSV_COLUMNS)
-        console.print(f"interrupted: wrote {last_path}; continue with --resume")
-        raise
+
+    def run_epoch(epoch: int, batch_done: Callable[[str], None]) -> EpochOutcome:
+        order = rng.permutation(len(v))
+        errors = []
+        for k in range(n_batches):
+            idx = torch.from_numpy(order[k * settings.batch_size:(k + 1) * settings.batch_size])
+            p = past[idx]
+            if settings.past_noise:
+                p = p + settings.past_noise * torch.randn(p.shape, generator=gen)
+            errors.append(model.train_step(v[idx], p, ctx[idx], gen))
+            if settings.project_every and (k + 1) % settings.project_every == 0:
+                model.limit_ar_radius(corners, settings.max_ar_radius)
+            batch_done(f"reconstruction {np.mean(errors):.4g}")
+            if on_batch is not None:
+                on_batch(epoch, k)
+        radius = model.limit_ar_radius(stable_grid(), settings.max_ar_radius)
+        val_error = one_step_error(model, *val, seed=seed)
+        train_error = float(np.mean(errors))
+        return EpochOutcome(
+            {"train_reconstruction": train_error, "val_one_step": val_error,
+             "ar_radius": radius},
+            val_error if math.isfinite(val_error) else train_error,
+            f"reconstruction {train_error:.4g}  one-step {val_error:.4g}  AR radius {radius:.3f}",
+        )
+
+    run_epochs(log, settings.epochs, n_batches, out_dir, CSV_COLUMNS, run_epoch, checkpoint,
+               lambda: {"numpy": rng.bit_generator.state, "torch": gen.get_state()}, progress)
     model.eval()
-    return FCRBMTrainResult(model, data.codec, history, out_dir,
-                            best_val if math.isfinite(best_val) else math.nan)
+    return FCRBMTrainResult(model, data.codec, log.history, out_dir,
+                            log.best_val if math.isfinite(log.best_val) else math.nan)

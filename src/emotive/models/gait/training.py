@@ -36,11 +36,8 @@ weights reached, so it is not bit-identical to an uninterrupted run.
 
 from __future__ import annotations
 
-import csv
-import io
 import math
 import pickle
-import time
 import tomllib
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, fields
@@ -52,6 +49,7 @@ import torch
 
 from emotive.data.emotion import ALL_LABELS
 from emotive.errors import EmotiveError
+from emotive.models.epochs import EpochOutcome, TrainingLog, resumed_log, run_epochs
 from emotive.models.gait.config import GaitConfig
 from emotive.models.gait.controls import gait_controls
 from emotive.models.gait.data import DEFAULT_DATASETS, GaitBatch, GaitData, load_gait_data
@@ -355,22 +353,8 @@ def _set_rng_state(rng: np.random.Generator, state: dict[str, Any]) -> None:
     torch.set_rng_state(state["torch"])
 
 
-def _write_csv(path: Path, history: list[dict[str, float]],
-               columns: tuple[str, ...] = CSV_COLUMNS) -> None:
-    """The training log, one row per epoch (a missing value left empty), atomically."""
-    from emotive.io.atomic import atomic_output
-
-    text = io.StringIO()
-    writer = csv.DictWriter(text, fieldnames=columns, lineterminator="\n")
-    writer.writeheader()
-    for row in history:
-        writer.writerow({k: "" if row.get(k) is None else row[k] for k in columns})
-    with atomic_output(path) as tmp:
-        tmp.write_text(text.getvalue())
-
-
-def training_paths(out_dir: Path, resume: bool) -> tuple[Path, Path, Path]:
-    """``last.pt``, ``best.pt`` and ``log.csv`` in ``out_dir`` (created).
+def training_paths(out_dir: Path, resume: bool) -> Path:
+    """``out_dir`` created, and its ``last.pt``.
 
     Raises:
         ConfigError: ``resume`` without a ``last.pt`` to resume from.
@@ -379,14 +363,7 @@ def training_paths(out_dir: Path, resume: bool) -> tuple[Path, Path, Path]:
     last_path = out_dir / "last.pt"
     if resume and not last_path.exists():
         raise ConfigError(f"{last_path}: no checkpoint to resume from")
-    return last_path, out_dir / "best.pt", out_dir / "log.csv"
-
-
-def _save(path: Path, checkpoint: dict[str, Any]) -> None:
-    from emotive.io.atomic import atomic_output
-
-    with atomic_output(path) as tmp:
-        torch.save(checkpoint, tmp)
+    return last_path
 
 
 def load_checkpoint(path: str | Path) -> tuple[GaitNetwork, dict[str, Any]]:
@@ -465,11 +442,8 @@ def train_gait(
             config or other training settings (``epochs`` may differ).
         KeyboardInterrupt: after writing ``last.pt`` (Ctrl-C).
     """
-    from rich.console import Console
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
-
     out_dir = Path(out_dir)
-    last_path, best_path, csv_path = training_paths(out_dir, resume)
+    last_path = training_paths(out_dir, resume)
     if data is None:
         data = load_gait_data(config, settings.datasets, settings.window, settings.stride,
                               settings.split_seed, settings.max_clips, progress)
@@ -485,9 +459,7 @@ def train_gait(
     if settings.init_from and not resume:
         _initialize_from(network, settings.init_from)
     optimizer = torch.optim.Adam(network.parameters(), lr=settings.learning_rate)
-    history: list[dict[str, float]] = []
-    best_val = math.inf
-    start_epoch = 0
+    log = TrainingLog()
     if resume:
         _, ckpt = load_checkpoint(last_path)
         if ckpt["config"] != config.to_dict():
@@ -498,107 +470,74 @@ def train_gait(
         network.load_state_dict(ckpt["state"])
         optimizer.load_state_dict(ckpt["optimizer"])
         _set_rng_state(rng, ckpt["rng"])
-        start_epoch, best_val = int(ckpt["epoch"]), float(ckpt["best_val"])
-        history = list(ckpt["history"])[:start_epoch]
+        log = resumed_log(ckpt)
 
     def checkpoint(epoch: int, rng_state: dict[str, Any]) -> dict[str, Any]:
         return {
             "config": config.to_dict(), "train": settings.to_dict(),
             "state": network.state_dict(), "optimizer": optimizer.state_dict(),
-            "epoch": epoch, "rng": rng_state, "best_val": best_val, "history": history,
-            "seed": seed, "controls": controls,
+            "epoch": epoch, "rng": rng_state, "best_val": log.best_val,
+            "history": log.history, "seed": seed, "controls": controls,
         }
 
-    console = Console(stderr=True)
-    bars = Progress(
-        TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
-        TimeElapsedColumn(), TextColumn("{task.fields[losses]}"),
-        console=console, disable=not progress, transient=True,
-    )
-    n_batches = math.ceil(len(train) / settings.batch_size)
-    epoch = start_epoch
-    epoch_rng = _rng_state(rng)
-    # Whether the weights moved since last.pt was written (Ctrl-C then has something to save).
-    dirty = False
-    try:
-        with bars:
-            epochs_task = bars.add_task("epochs", total=settings.epochs,
-                                        completed=start_epoch, losses="")
-            batch_task = bars.add_task("batches", total=n_batches, losses="")
-            for epoch in range(start_epoch, settings.epochs):
-                epoch_rng = _rng_state(rng)
-                began = time.perf_counter()
-                lr = settings.learning_rate * settings.lr_decay**epoch
-                ratio = settings.initial_teacher_forcing * settings.teacher_forcing_decay**epoch
-                for group in optimizer.param_groups:
-                    group["lr"] = lr
-                network.train()
-                sums: dict[str, float] = {}
-                seen = 0
-                bars.reset(batch_task, total=n_batches)
-                for k, idx in enumerate(_batches(len(train), settings.batch_size,
-                                                 epoch_order(train, settings, rng))):
-                    batch = train.batch(idx)
-                    outputs = rollout(network, batch,
-                                      teacher_forcing_mask(train.length, ratio, rng), rig)
-                    total, terms = loss_fn(outputs, batch.next_rotations, batch.next_root,
-                                           batch.next_positions)
-                    optimizer.zero_grad()
-                    total.backward()
-                    optimizer.step()
-                    dirty = True
-                    seen += len(idx)
-                    for name, value in terms.items():
-                        sums[name] = sums.get(name, 0.0) + value * len(idx)
-                    bars.update(batch_task, advance=1, losses=_describe(
-                        {n: v / seen for n, v in sums.items()}))
-                    if on_batch is not None:
-                        on_batch(epoch, k)
-                train_terms = {n: v / seen for n, v in sums.items()}
-                val_terms = (
-                    # Without gradients, larger batches cost no more memory than training ones.
-                    evaluate_loss(network, val, loss_fn, 4 * settings.batch_size,
-                                  settings.val_teacher_forcing, seed)
-                    if val is not None and len(val) else {}
-                )
-                row: dict[str, float] = {"epoch": epoch + 1}
-                for name in LOG_TERMS:
-                    row[f"train_{name}"] = train_terms.get(name)
-                    row[f"val_{name}"] = val_terms.get(name)
-                row.update(lr=lr, teacher_forcing=ratio,
-                           seconds=round(time.perf_counter() - began, 3))
-                history.append(row)
-                score = val_terms.get("total", train_terms["total"])
-                improved = score < best_val
-                if improved:
-                    best_val = score
-                done = checkpoint(epoch + 1, _rng_state(rng))
-                if improved:
-                    _save(best_path, done)
-                _save(last_path, done)
-                dirty = False
-                _write_csv(csv_path, history)
-                summary = (
-                    f"train {train_terms['total']:.4g}"
-                    + (f"  val {val_terms['total']:.4g}" if val_terms else "")
-                    + ("  (best)" if improved else "")
-                )
-                bars.update(epochs_task, advance=1, losses=summary)
-                if progress:
-                    bars.console.print(f"epoch {epoch + 1}/{settings.epochs}: {summary}  "
-                                       f"{_describe(val_terms or train_terms)}  "
-                                       f"lr {lr:.3g}  teacher forcing {ratio:.3g}")
-    except KeyboardInterrupt:
-        if dirty:
-            # The weights reached are kept; the epoch reruns from its start, same batch order.
-            del history[epoch:]
-            _save(last_path, checkpoint(epoch, epoch_rng))
-            _write_csv(csv_path, history)
-        console.print(f"interrupted: wrote {last_path}; continue with --resume")
-        raise
+    def run_epoch(epoch: int, batch_done: Callable[[str], None]) -> EpochOutcome:
+        lr = settings.learning_rate * settings.lr_decay**epoch
+        ratio = settings.initial_teacher_forcing * settings.teacher_forcing_decay**epoch
+        for group in optimizer.param_groups:
+            group["lr"] = lr
+        network.train()
+        sums: dict[str, float] = {}
+        seen = 0
+        for k, idx in enumerate(_batches(len(train), settings.batch_size,
+                                         epoch_order(train, settings, rng))):
+            batch = train.batch(idx)
+            outputs = rollout(network, batch, teacher_forcing_mask(train.length, ratio, rng),
+                              rig)
+            total, terms = loss_fn(outputs, batch.next_rotations, batch.next_root,
+                                   batch.next_positions)
+            optimizer.zero_grad()
+            total.backward()
+            optimizer.step()
+            seen += len(idx)
+            for name, value in terms.items():
+                sums[name] = sums.get(name, 0.0) + value * len(idx)
+            batch_done(_describe({n: v / seen for n, v in sums.items()}))
+            if on_batch is not None:
+                on_batch(epoch, k)
+        train_terms = {n: v / seen for n, v in sums.items()}
+        val_terms = (
+            # Without gradients, larger batches cost no more memory than training ones.
+            evaluate_loss(network, val, loss_fn, 4 * settings.batch_size,
+                          settings.val_teacher_forcing, seed)
+            if val is not None and len(val) else {}
+        )
+        return loss_outcome(LOG_TERMS, train_terms, val_terms, lr, ratio,
+                            _describe(val_terms or train_terms))
+
+    run_epochs(log, settings.epochs, math.ceil(len(train) / settings.batch_size), out_dir,
+               CSV_COLUMNS, run_epoch, checkpoint, lambda: _rng_state(rng), progress)
     network.eval()
-    return GaitTrainResult(network, history, out_dir,
-                           best_val if math.isfinite(best_val) else math.nan)
+    return GaitTrainResult(network, log.history, out_dir,
+                           log.best_val if math.isfinite(log.best_val) else math.nan)
+
+
+def loss_outcome(terms: tuple[str, ...], train_terms: dict[str, float],
+                 val_terms: dict[str, float], lr: float, teacher_forcing: float,
+                 detail: str = "") -> EpochOutcome:
+    """An epoch of a trainer of loss terms: its log row (``train_``/``val_`` of every name in
+    ``terms``, learning rate, teacher forcing), scored by the validation total (the training
+    total without validation data)."""
+    row: dict[str, float | None] = {}
+    for name in terms:
+        row[f"train_{name}"] = train_terms.get(name)
+        row[f"val_{name}"] = val_terms.get(name)
+    row.update(lr=lr, teacher_forcing=teacher_forcing)
+    return EpochOutcome(
+        row, val_terms.get("total", train_terms["total"]),
+        f"train {train_terms['total']:.4g}"
+        + (f"  val {val_terms['total']:.4g}" if val_terms else ""),
+        (f"{detail}  " if detail else "") + f"lr {lr:.3g}  teacher forcing {teacher_forcing:.3g}",
+    )
 
 
 def _describe(terms: dict[str, float]) -> str:

@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import math
 import pickle
-import time
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -39,6 +39,7 @@ import numpy as np
 import torch
 
 from emotive.errors import EmotiveError
+from emotive.models.epochs import EpochOutcome, TrainingLog, resumed_log, run_epochs
 from emotive.models.gait.config import GaitConfig
 from emotive.models.gait.controls import gait_controls
 from emotive.models.gait.data import GaitBatch, GaitData, load_gait_data
@@ -49,10 +50,9 @@ from emotive.models.gait.training import (
     GaitTrainSettings,
     _batches,
     _rng_state,
-    _save,
     _set_rng_state,
-    _write_csv,
     load_settings,
+    loss_outcome,
     teacher_forcing_mask,
     training_paths,
 )
@@ -208,11 +208,8 @@ def train_quaternet(
             ``num_joints``.
         KeyboardInterrupt: after writing ``last.pt`` (Ctrl-C).
     """
-    from rich.console import Console
-    from rich.progress import Progress
-
     out_dir = Path(out_dir)
-    last_path, best_path, csv_path = training_paths(out_dir, resume)
+    last_path = training_paths(out_dir, resume)
     if data is None:
         data_config = GaitConfig(labels=config.labels, num_joints=config.num_joints,
                                  fps=config.fps)
@@ -232,8 +229,7 @@ def train_quaternet(
         tuple(torch.from_numpy(x) for x in train.statistics()["movement"])
     )
     optimizer = torch.optim.Adam(network.parameters(), lr=settings.learning_rate)
-    history: list[dict[str, float]] = []
-    best_val, start_epoch = math.inf, 0
+    log = TrainingLog()
     if resume:
         _, ckpt = load_quaternet_checkpoint(last_path)
         if ckpt["config"] != config.to_dict():
@@ -245,80 +241,43 @@ def train_quaternet(
         network.load_state_dict(ckpt["state"])
         optimizer.load_state_dict(ckpt["optimizer"])
         _set_rng_state(rng, ckpt["rng"])
-        start_epoch, best_val = int(ckpt["epoch"]), float(ckpt["best_val"])
-        history = list(ckpt["history"])[:start_epoch]
+        log = resumed_log(ckpt)
 
     def checkpoint(epoch: int, rng_state: dict[str, Any]) -> dict[str, Any]:
         return {
             "model": "quaternet", "config": config.to_dict(), "train": settings.to_dict(),
             "state": network.state_dict(), "optimizer": optimizer.state_dict(),
-            "epoch": epoch, "rng": rng_state, "best_val": best_val, "history": history,
-            "seed": seed, "controls": controls,
+            "epoch": epoch, "rng": rng_state, "best_val": log.best_val,
+            "history": log.history, "seed": seed, "controls": controls,
         }
 
-    console = Console(stderr=True)
-    epoch, epoch_rng, dirty = start_epoch, _rng_state(rng), False
-    try:
-        with Progress(console=console, disable=not progress, transient=True) as bars:
-            task = bars.add_task("batches", total=math.ceil(len(train) / settings.batch_size))
-            for epoch in range(start_epoch, settings.epochs):
-                epoch_rng, began = _rng_state(rng), time.perf_counter()
-                lr = settings.learning_rate * settings.lr_decay**epoch
-                ratio = settings.teacher_forcing_decay**epoch
-                for group in optimizer.param_groups:
-                    group["lr"] = lr
-                network.train()
-                sums, seen = dict.fromkeys(LOG_TERMS, 0.0), 0
-                bars.reset(task)
-                for idx in _batches(len(train), settings.batch_size,
-                                    rng.permutation(len(train))):
-                    batch = train.batch(idx)
-                    outputs = rollout(network, batch,
-                                      teacher_forcing_mask(train.length, ratio, rng))
-                    total, terms = quaternet_loss(outputs, batch, rig, config)
-                    optimizer.zero_grad()
-                    total.backward()
-                    optimizer.step()
-                    dirty, seen = True, seen + len(idx)
-                    for name, value in terms.items():
-                        sums[name] += value * len(idx)
-                    bars.advance(task)
-                train_terms = {n: v / seen for n, v in sums.items()}
-                val_terms = (evaluate_quaternet(network, val, rig, 4 * settings.batch_size,
-                                                settings.val_teacher_forcing, seed)
-                             if val is not None and len(val) else {})
-                row: dict[str, float] = {"epoch": epoch + 1}
-                for name in LOG_TERMS:
-                    row[f"train_{name}"] = train_terms[name]
-                    row[f"val_{name}"] = val_terms.get(name)
-                row.update(lr=lr, teacher_forcing=ratio,
-                           seconds=round(time.perf_counter() - began, 3))
-                history.append(row)
-                score = val_terms.get("total", train_terms["total"])
-                improved = score < best_val
-                best_val = min(best_val, score)
-                done = checkpoint(epoch + 1, _rng_state(rng))
-                if improved:
-                    _save(best_path, done)
-                _save(last_path, done)
-                dirty = False
-                _write_csv(csv_path, history, CSV_COLUMNS)
-                if progress:
-                    console.print(
-                        f"epoch {epoch + 1}/{settings.epochs}: train {train_terms['total']:.4g}"
-                        + (f"  val {val_terms['total']:.4g}" if val_terms else "")
-                        + ("  (best)" if improved else "") + f"  lr {lr:.3g}"
-                        + f"  teacher forcing {ratio:.3g}"
-                    )
-    except KeyboardInterrupt:
-        if dirty:
-            # The weights reached are kept; the epoch reruns from its start, same batch order.
-            del history[epoch:]
-            _save(last_path, checkpoint(epoch, epoch_rng))
-            _write_csv(csv_path, history, CSV_COLUMNS)
-        console.print(f"interrupted: wrote {last_path}; continue with --resume")
-        raise
+    def run_epoch(epoch: int, batch_done: Callable[[str], None]) -> EpochOutcome:
+        lr = settings.learning_rate * settings.lr_decay**epoch
+        ratio = settings.teacher_forcing_decay**epoch
+        for group in optimizer.param_groups:
+            group["lr"] = lr
+        network.train()
+        sums, seen = dict.fromkeys(LOG_TERMS, 0.0), 0
+        for idx in _batches(len(train), settings.batch_size, rng.permutation(len(train))):
+            batch = train.batch(idx)
+            outputs = rollout(network, batch, teacher_forcing_mask(train.length, ratio, rng))
+            total, terms = quaternet_loss(outputs, batch, rig, config)
+            optimizer.zero_grad()
+            total.backward()
+            optimizer.step()
+            seen += len(idx)
+            for name, value in terms.items():
+                sums[name] += value * len(idx)
+            batch_done(f"total {sums['total'] / seen:.3g}")
+        train_terms = {n: v / seen for n, v in sums.items()}
+        val_terms = (evaluate_quaternet(network, val, rig, 4 * settings.batch_size,
+                                        settings.val_teacher_forcing, seed)
+                     if val is not None and len(val) else {})
+        return loss_outcome(LOG_TERMS, train_terms, val_terms, lr, ratio)
+
+    run_epochs(log, settings.epochs, math.ceil(len(train) / settings.batch_size), out_dir,
+               CSV_COLUMNS, run_epoch, checkpoint, lambda: _rng_state(rng), progress)
     network.eval()
-    return QuaterNetTrainResult(network, history, out_dir,
-                                best_val if math.isfinite(best_val) else math.nan)
+    return QuaterNetTrainResult(network, log.history, out_dir,
+                                log.best_val if math.isfinite(log.best_val) else math.nan)
 
