@@ -215,9 +215,14 @@ def test_training_without_visible_autoregression(tmp_path):
     config = FCRBMConfig(visible=1, order=3, hidden=16, factors=8, factors_past_visible=8,
                          factors_past_hidden=8, gibbs=3, init_std=0.1,
                          visible_autoregression=False)
-    result = train_fcrbm(config, FCRBMTrainSettings(epochs=2, batch_size=32), progress=False,
-                         out_dir=tmp_path, data=synthetic_data(config.order))
+    batches = []
+    result = train_fcrbm(config, FCRBMTrainSettings(epochs=2, batch_size=32,
+                                                    balance_contexts=True),
+                         progress=False, out_dir=tmp_path, data=synthetic_data(config.order),
+                         on_batch=lambda epoch, batch: batches.append(batch))
     assert [r["ar_radius"] for r in result.history] == [0.0, 0.0]
+    # Two contexts of 117 examples each: balanced already, 234 a epoch in 8 batches of 32.
+    assert batches == list(range(8)) * 2
     network, codec, _ = load_fcrbm_checkpoint(tmp_path / "last.pt")
     assert not network.config.visible_autoregression and not hasattr(network, "a_past")
     for name, value in network.state_dict().items():
@@ -358,3 +363,45 @@ def test_generate_without_a_model_says_how_to_get_one(tmp_path, monkeypatch):
     assert isinstance(result.exception, ConfigError)
     assert "emotive fcrbm train" in str(result.exception) and "--model" in str(result.exception)
     assert not (tmp_path / "x.bvh").exists()
+
+
+@pytest.mark.data
+def test_the_styles_setting_trains_on_the_named_styles_only(bandai1_dir):
+    from emotive.errors import DataError
+    from emotive.models.fcrbm.training import load_fcrbm_data
+
+    settings = FCRBMTrainSettings(datasets=("bandai-namco-1",),
+                                  styles=("bandai-namco-1:happy", "bandai-namco-1:sad"))
+    data = load_fcrbm_data(settings)
+    names = [n for items in data.splits.values() for n, *_ in items]
+    assert {n.split("_")[2] for n in names} == {"happy", "sad"}
+    with pytest.raises(DataError, match=r"no walk clips of \['cheerful'\].*'happy'"):
+        load_fcrbm_data(replace(settings, styles=("bandai-namco-1:cheerful",)))
+    with pytest.raises(ValueError, match="data set:style"):
+        FCRBMTrainSettings(styles=("happy",))
+
+
+def test_balanced_epochs_weigh_every_valence_arousal_point_alike():
+    from emotive.models.fcrbm.training import epoch_examples
+
+    context = np.array([[1.0, 1.0]] * 40 + [[2.0, 2.0]] * 10 + [[3.0, 2.1]] * 3)
+    np.testing.assert_array_equal(epoch_examples(context, False), np.arange(53))
+    pool = epoch_examples(context, True)
+    counts = np.unique(context[pool], axis=0, return_counts=True)[1]
+    np.testing.assert_array_equal(counts, [40, 40, 39])  # 10 x 4, 3 x round(13.3)
+    assert set(pool) == set(range(53))
+    with pytest.raises(ValueError, match="balance_contexts"):
+        FCRBMTrainSettings(balance_contexts="yes")
+
+
+def test_the_warm_up_walks_at_the_neutral_point_then_changes_to_the_request():
+    from emotive.models.fcrbm.generate import warmup_context
+
+    first = np.array([[3.0, 1.0], [2.0, 2.0]])
+    lead = warmup_context(first, FPS)
+    assert lead.shape == (90, 2, 2)  # 2 s held, 1 s of change, at 30 fps
+    np.testing.assert_allclose(lead[:60], 2.0)
+    step = np.diff(lead[59:, 0], axis=0)
+    np.testing.assert_allclose(step, np.broadcast_to(step[0], step.shape))  # linear, to (3, 1)
+    np.testing.assert_allclose(lead[-1, 0] + step[0], first[0])
+    np.testing.assert_allclose(lead[:, 1], 2.0)

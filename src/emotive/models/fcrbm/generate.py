@@ -8,9 +8,12 @@ exaggerate (extrapolation) and are accepted within :data:`CONTEXT_RANGE`; the co
 positive because every interaction of the model is multiplicative in it.
 
 Start: the last ``N`` frames of a primer clip on the training rig, or by default ``N`` copies
-of the training data's mean frame (a statistic, not a recording); the first
-:data:`WARMUP_SECONDS` generated from the mean frame are dropped, so the output starts in
-motion.
+of the training data's mean frame (a statistic, not a recording). From the mean frame the model
+first walks :data:`WARMUP_SECONDS` at the neutral point :data:`WARMUP_CONTEXT`, where its
+walk starts most reliably, then changes linearly to the first requested context over
+:data:`WARMUP_RAMP_SECONDS`; those frames are dropped, so the output starts in motion (the paper
+started from six recorded frames of the requested state instead, which a checkpoint cannot
+ship).
 
 Legend: ``T`` frames, ``D`` visible units, ``N`` order.
 """
@@ -34,8 +37,12 @@ from emotive.models.fcrbm.model import FCRBM
 
 #: Accepted valence/arousal values (the paper's scale is 1-3; beyond it exaggerates).
 CONTEXT_RANGE = (0.25, 5.0)
-#: Seconds generated and dropped when starting from the mean frame.
+#: Seconds generated at :data:`WARMUP_CONTEXT` and dropped when starting from the mean frame.
 WARMUP_SECONDS = 2.0
+#: Valence/arousal of the warm-up from the mean frame.
+WARMUP_CONTEXT = (2.0, 2.0)
+#: Seconds of linear change from the warm-up to the first requested context (also dropped).
+WARMUP_RAMP_SECONDS = 1.0
 #: A standardized frame value beyond this means the model's dynamics diverged.
 DIVERGED = 25.0
 
@@ -185,6 +192,17 @@ def seed_frames(model: FCRBMModel, primer: Motion | None = None) -> np.ndarray:
     return model.codec.encode(frame_vectors(primer))[-n:]
 
 
+def warmup_context(first: np.ndarray, fps: float) -> np.ndarray:
+    """``(W, B, 2)`` context of the warm-up before a ``(B, 2)`` first requested context:
+    :data:`WARMUP_SECONDS` at :data:`WARMUP_CONTEXT`, then a linear change to ``first`` over
+    :data:`WARMUP_RAMP_SECONDS` (its last frame just before ``first``)."""
+    hold, ramp = round(WARMUP_SECONDS * fps), round(WARMUP_RAMP_SECONDS * fps)
+    neutral = np.broadcast_to(np.asarray(WARMUP_CONTEXT, dtype=np.float64), first.shape)
+    weight = (np.arange(1, ramp + 1) / (ramp + 1))[:, None, None]
+    return np.concatenate((np.repeat(neutral[None], hold, axis=0),
+                           (1 - weight) * neutral + weight * first))
+
+
 def generate_motion(
     model: FCRBMModel,
     context: np.ndarray,
@@ -221,8 +239,9 @@ def generate_motion(
     if gibbs is not None and gibbs < 1:
         raise FCRBMInputError(f"--gibbs must be >= 1, got {gibbs}")
     start = seed_frames(model, primer)
-    warm = 0 if primer is not None else round(WARMUP_SECONDS * model.fps)
-    zt = torch.from_numpy(np.concatenate((np.repeat(z[:1], warm, axis=0), z)).astype(np.float32))
+    lead = np.zeros((0, agents, 2)) if primer is not None else warmup_context(z[0], model.fps)
+    warm = len(lead)
+    zt = torch.from_numpy(np.concatenate((lead, z)).astype(np.float32))
     past = torch.from_numpy(np.repeat(start[None], agents, axis=0))
     gen = torch.Generator().manual_seed(seed)
     try:

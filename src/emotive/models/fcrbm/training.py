@@ -60,6 +60,11 @@ class FCRBMTrainSettings:
         batch_size: examples per CD update.
         datasets: registry names of the data sets.
         contents: clip contents used (e.g. ``walk``).
+        styles: ``"data set:style"`` entries (e.g. ``"bandai-namco-1:happy"``) to train on
+            only those styles' clips; empty: every style with a valence/arousal entry.
+        balance_contexts: repeat the examples of every valence/arousal point in each epoch
+            so that each point weighs about as much as the largest (:func:`epoch_examples`);
+            otherwise a point weighs as much as its frames.
         split_seed: seed of the split by clip.
         max_clips: for quick runs, at most this many clips per split and data set (0: all).
         past_noise: standard deviation (standardized units) of Gaussian noise added to the
@@ -86,6 +91,8 @@ class FCRBMTrainSettings:
     batch_size: int = 100
     datasets: tuple[str, ...] = DEFAULT_DATASETS
     contents: tuple[str, ...] = ("walk",)
+    styles: tuple[str, ...] = ()
+    balance_contexts: bool = False
     split_seed: int = 0
     max_clips: int = 0
     past_noise: float = 0.0
@@ -112,6 +119,15 @@ class FCRBMTrainSettings:
             if isinstance(value, str) or not value or not all(isinstance(v, str) for v in value):
                 raise ValueError(f"{name} must be a non-empty list of names, got {value!r}")
             object.__setattr__(self, name, tuple(value))
+        if isinstance(self.styles, str) or not all(
+                isinstance(v, str) and v.partition(":")[0] in self.datasets and v.partition(":")[2]
+                for v in self.styles):
+            raise ValueError(f"styles must be a list of \"data set:style\" entries with a data "
+                             f"set of datasets ({list(self.datasets)}), got {self.styles!r}")
+        object.__setattr__(self, "styles", tuple(self.styles))
+        if not isinstance(self.balance_contexts, bool):
+            raise ValueError(f"balance_contexts must be true or false, got "
+                             f"{self.balance_contexts!r}")
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-safe dict of every field (tuples as lists)."""
@@ -166,6 +182,14 @@ def load_fcrbm_data(settings: FCRBMTrainSettings, progress: bool = False) -> FCR
     for name in settings.datasets:
         clips = [c for c in load_clips(name, contents=settings.contents, progress=progress)
                  if style_to_label(c.style) in VALENCE_AROUSAL and c.motion.num_frames > 1]
+        wanted = {v.partition(":")[2] for v in settings.styles if v.partition(":")[0] == name}
+        if settings.styles:
+            missing = sorted(wanted - {c.style for c in clips})
+            if missing:
+                raise DataError(f"styles: no {'/'.join(settings.contents)} clips of {missing} "
+                                f"with a valence/arousal entry in {name}; it has "
+                                f"{sorted({c.style for c in clips})}")
+            clips = [c for c in clips if c.style in wanted]
         for split, members in split_clips(clips, seed=settings.split_seed).items():
             for clip in _spread(members, settings.max_clips):
                 frames = frame_vectors(clip.motion)
@@ -177,6 +201,25 @@ def load_fcrbm_data(settings: FCRBMTrainSettings, progress: bool = False) -> FCR
     codec = FrameCodec.fit([f for _, f, _, _ in raw["train"]], [m for *_, m in raw["train"]])
     return FCRBMData(codec, {s: [(n, codec.encode(f), c) for n, f, c, _ in items]
                              for s, items in raw.items()})
+
+
+def epoch_examples(context: np.ndarray, balance: bool) -> np.ndarray:
+    """Indices of the examples of one epoch: each once, or with ``balance`` each repeated so
+    that every valence/arousal point of the data has about as many as the largest.
+
+    Args:
+        context: ``(M, 2)`` context of every training example.
+        balance: weigh the valence/arousal points alike.
+
+    Returns:
+        ``(M',)`` example indices (``M' >= M``), in example order.
+    """
+    index = np.arange(len(context))
+    if not balance or not len(context):
+        return index
+    _, group, counts = np.unique(context, axis=0, return_inverse=True, return_counts=True)
+    repeats = np.maximum(1, np.round(counts.max() / counts)).astype(int)
+    return np.repeat(index, repeats[group.ravel()])
 
 
 def stable_grid() -> torch.Tensor:
@@ -303,8 +346,10 @@ def train_fcrbm(
     log = TrainingLog()
     if resume:
         _, _, ckpt = load_fcrbm_checkpoint(last_path)
-        if ckpt["config"] != config.to_dict() or ckpt["train"] != settings.to_dict() | {
-                "epochs": ckpt["train"]["epochs"]}:
+        # Settings added since a checkpoint was written take their defaults.
+        saved = FCRBMTrainSettings().to_dict() | ckpt["train"]
+        if ckpt["config"] != config.to_dict() or saved != settings.to_dict() | {
+                "epochs": saved["epochs"]}:
             raise ConfigError(f"{last_path}: made with other settings; cannot resume")
         model.load_state_dict(ckpt["state"])
         model._velocity = dict(ckpt["velocity"])
@@ -320,11 +365,12 @@ def train_fcrbm(
             "best_val": log.best_val, "history": log.history, "seed": seed,
         }
 
-    n_batches = math.ceil(len(v) / settings.batch_size)
+    pool = epoch_examples(ctx.numpy(), settings.balance_contexts)
+    n_batches = math.ceil(len(pool) / settings.batch_size)
     corners = stable_corners()
 
     def run_epoch(epoch: int, batch_done: Callable[[str], None]) -> EpochOutcome:
-        order = rng.permutation(len(v))
+        order = pool[rng.permutation(len(pool))]
         errors = []
         for k in range(n_batches):
             idx = torch.from_numpy(order[k * settings.batch_size:(k + 1) * settings.batch_size])
