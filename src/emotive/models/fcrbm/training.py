@@ -2,7 +2,8 @@
 
 ``emotive fcrbm train --config configs/fcrbm.toml``: the clips of :attr:`FCRBMTrainSettings
 .contents` (by default walks) of every style with a valence/arousal entry, in both data sets,
-split by clip per data set (:func:`emotive.data.splits.split_clips`); frames and context as in
+or of the styles named in :attr:`FCRBMTrainSettings.styles`, split by clip per data set
+(:func:`emotive.data.splits.split_clips`); frames and context as in
 :mod:`emotive.models.fcrbm.data`, the codec fitted on the training split. Every example is a
 frame, its ``N`` past frames and its context, never crossing a clip.
 
