@@ -183,13 +183,14 @@ def load_fcrbm_data(settings: FCRBMTrainSettings, progress: bool = False) -> FCR
     for name in settings.datasets:
         clips = [c for c in load_clips(name, contents=settings.contents, progress=progress)
                  if style_to_label(c.style) in VALENCE_AROUSAL and c.motion.num_frames > 1]
-        wanted = {v.partition(":")[2] for v in settings.styles if v.partition(":")[0] == name}
         if settings.styles:
-            missing = sorted(wanted - {c.style for c in clips})
-            if missing:
-                raise DataError(f"styles: no {'/'.join(settings.contents)} clips of {missing} "
-                                f"with a valence/arousal entry in {name}; it has "
-                                f"{sorted({c.style for c in clips})}")
+            entries = (v.partition(":") for v in settings.styles)
+            wanted = {style for data_set, _, style in entries if data_set == name}
+            have = {c.style for c in clips}
+            if wanted - have:
+                raise DataError(f"styles: no {'/'.join(settings.contents)} clips of "
+                                f"{sorted(wanted - have)} with a valence/arousal entry in "
+                                f"{name}; it has {sorted(have)}")
             clips = [c for c in clips if c.style in wanted]
         for split, members in split_clips(clips, seed=settings.split_seed).items():
             for clip in _spread(members, settings.max_clips):
