@@ -19,6 +19,7 @@ sys.path.insert(0, str(HERE))
 
 import bench_bvh  # noqa: E402
 import bench_data  # noqa: E402
+import bench_fcrbm  # noqa: E402
 import bench_features  # noqa: E402
 import bench_gait  # noqa: E402
 import bench_kinematics  # noqa: E402
@@ -57,6 +58,7 @@ def main() -> None:
             baseline_agents=(1, 10) if args.quick else (1, 10, 100))),
         ("mar", lambda: bench_mar.run(frames=60 if args.quick else 200,
                                       baseline_frames=10 if args.quick else 20)),
+        ("fcrbm", lambda: bench_fcrbm.run(repeats=1 if args.quick else 3)),
         ("lgb", lambda: bench_lgb.run(emotions=("sad",) if args.quick else bench_lgb.EMOTIONS,
                                       repeats=1 if args.quick else 3)),
     ):

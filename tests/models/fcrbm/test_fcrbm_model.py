@@ -205,6 +205,20 @@ def test_single_gibbs_step_is_mean_field_from_previous_frame(model: FCRBM, batch
     torch.testing.assert_close(out[:, 1], second.detach())
 
 
+def test_multiplied_out_weights_follow_a_changing_context(model: FCRBM, batch) -> None:
+    """Generation multiplies the factors out once per context: a context held, changed, and
+    changed back gives the frames of the factored conditionals."""
+    _, past, z = batch
+    ctx = torch.stack([z, z, z + 0.7, z, z * 0.5])
+    out = model.generate(past, ctx, gibbs=1, generator=torch.Generator().manual_seed(0))
+    window = past
+    for t, zt in enumerate(ctx):
+        frame = model.visible_mean(model.hidden_probabilities(window[:, -1], window, zt),
+                                   window, zt).detach()
+        torch.testing.assert_close(out[:, t], frame)
+        window = torch.cat([window[:, 1:], frame[:, None]], dim=1)
+
+
 def _companion_by_hand(model: FCRBM, z: torch.Tensor) -> torch.Tensor:
     """The AR recursion's companion matrix built from the dynamic bias itself."""
     nd = N * D

@@ -256,7 +256,7 @@ def test_divergence_is_a_clear_error(tmp_path):
 
 def test_settings_file(tmp_path):
     config, settings = load_fcrbm_settings("configs/fcrbm.toml")
-    assert (config.order, config.hidden, config.factors) == (3, 400, 300)
+    assert (config.order, config.hidden, config.factors) == (6, 1000, 600)
     assert not config.visible_autoregression
     assert settings.contents == ("walk",)
     bad = tmp_path / "bad.toml"

@@ -84,9 +84,9 @@ def load_fcrbm_model(path: str | Path | None = None) -> FCRBMModel:
     from emotive.models.fcrbm.training import ConfigError, load_fcrbm_checkpoint
 
     if path is None and not default_checkpoint_path().is_file():
-        raise ConfigError("no built-in FCRBM checkpoint ships yet (see issue 6); train one with "
-                          "`emotive fcrbm train --out models/fcrbm` and pass --model "
-                          "models/fcrbm/best.pt")
+        raise ConfigError(f"the built-in FCRBM checkpoint {default_checkpoint_path()} is "
+                          "missing: reinstall emotive, or train one with `emotive fcrbm train "
+                          "--out models/fcrbm` and pass --model models/fcrbm/last.pt")
     network, codec, _ = load_fcrbm_checkpoint(path or default_checkpoint_path())
     return FCRBMModel(network, codec)
 

@@ -450,6 +450,8 @@ class FCRBM(nn.Module):
         Each frame starts its chain from the previous frame, runs ``gibbs`` alternating
         iterations (sampled hidden units, mean-field visible units) and ends with a mean-field
         step (hidden probabilities), which removes the sampling noise from the output frame.
+        The three-way weights are multiplied out at each new context
+        (:meth:`context_weights`).
 
         Args:
             past: ``(B, N, D)`` seed frames in time order.
@@ -487,17 +489,35 @@ class FCRBM(nn.Module):
         )
         window = p.clone()
         out = torch.empty(batch, z.shape[0], c.visible, dtype=p.dtype, device=p.device)
+        up = down = None
         for t in range(z.shape[0]):
             a_hat, b_hat = self._biases(window.reshape(batch, -1), z[t])
-            zf = z[t] @ self.w_ctx
+            if up is None or not torch.equal(z[t], z[t - 1]):
+                up = self.context_weights(z[t])
+                # Row vectors times both layouts: torch's batched matrix-vector product is
+                # several times slower than its batched vector-matrix product.
+                down = up.transpose(1, 2).contiguous()
             v = window[:, -1]
             for it in range(n_gibbs):
-                prob = torch.sigmoid(self._hidden_input(v, zf, b_hat))
+                prob = torch.sigmoid(b_hat + torch.bmm(v[:, None], up)[:, 0])
                 h = prob if it == n_gibbs - 1 else torch.bernoulli(prob, generator=gen)
-                v = self._visible_mean(h, zf, a_hat)
+                v = a_hat + torch.bmm(h[:, None], down)[:, 0]
             out[:, t] = v
             window = torch.cat([window[:, 1:], v[:, None]], dim=1)
         return out
+
+    def context_weights(self, context: Tensor) -> Tensor:
+        """``(B, D, H)`` visible-hidden weights at a context: ``W_v diag(z W_z) W_h^T``.
+
+        Generation multiplies by these instead of through the factors: ``D H`` products per
+        agent and Gibbs half-step instead of ``F (D + H)`` (11 x fewer at 55 visible, 1000
+        hidden and 600 factors), paid for with ``D F H`` once per change of context.
+
+        Args:
+            context: ``(B, C)`` context.
+        """
+        zf = context @ self.w_ctx
+        return torch.einsum("df,bf,hf->bdh", self.w_vis, zf, self.w_hid)
 
 
 def sliding_windows(frames: Any, context: Any, order: int) -> tuple[Tensor, Tensor, Tensor]:
