@@ -511,7 +511,9 @@ class FCRBM(nn.Module):
 
         Generation multiplies by these instead of through the factors: ``D H`` products per
         agent and Gibbs half-step instead of ``F (D + H)`` (11 x fewer at 55 visible, 1000
-        hidden and 600 factors), paid for with ``D F H`` once per change of context.
+        hidden and 600 factors), paid for with ``D F H`` once per change of context and with
+        memory: generation holds two copies, ``2 B D H`` floats (0.44 MB per agent at those
+        sizes).
 
         Args:
             context: ``(B, C)`` context.
