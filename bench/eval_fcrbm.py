@@ -7,12 +7,16 @@ references (``EMOTIVE_DATA`` or ``../shared/data``).
 * **control**: root speed, joint speed (relative to the root) and step frequency of motion
   generated along each axis (arousal 1, 1.5, ..., 3.5 at valence 2; valence likewise at
   arousal 2), ``--seeds`` samples of ``--seconds`` each, with whether each measure rises
-  monotonically over 1, 2, 3, 3.5; beside them the same measures on the real walks of the data
-  sets grouped by their arousal or valence (the training data's own trend).
+  monotonically over 1, 2, 3, 3.5, with the root path rebuilt from the stance foot (the
+  generator's default, ``root="feet"``) and with the model's own root velocity
+  (``root="model"``, the same generated frames); beside them the same measures on the real
+  walks of the data sets grouped by their arousal or valence (the training data's own trend).
 * **emotion**: motion generated at the valence/arousal of happy, sad, angry and neutral, judged
   by the evaluation suite's classifier (its emotion suite): window accuracy against the
-  classifier's accuracy on real held-out walks; and the affect suite's Fréchet distance of the
-  26 affective and movement features to real walks of the same emotion.
+  classifier's accuracy on real held-out walks (with either root path); the classifier's reading
+  of the checkpoint's own real training walks at the style nearest each emotion (what the
+  model could reach by copying its data); and the affect suite's Fréchet distance of the 26
+  affective and movement features to real walks of the same emotion.
 * **transition**: every ordered pair of the four emotions, 10 s each side with a one-second
   linear change, through the transition suite (jerk against the real data's windowed jerk,
   perceived emotion before and after), with the root speed per second through the change.
@@ -22,10 +26,10 @@ references (``EMOTIVE_DATA`` or ``../shared/data``).
   agents at 30 fps is 600 frames per second).
 * **walking** (``--part walking``, the screen used while the model still freezes): from the
   mean frame, 7 emotions x ``--seeds`` runs of 15 s, a run *walking* when its joint speed is
-  above 0.25 m/s and it makes more than 0.8 steps/s; and from a real clip, frames 30-32 of
-  the first training clip of each style the checkpoint was trained on, 600 frames at that
-  style's valence/arousal, the style *sustained* when the mean frame-to-frame change of frames
-  300-599 is more than half the clip's own.
+  above 0.25 m/s and it makes more than 0.8 steps/s (root from the stance foot); and from a
+  real clip, frames 30-32 of the first training clip of each style the checkpoint was trained
+  on, 600 frames at that style's valence/arousal, the style *sustained* when the mean
+  frame-to-frame change of frames 300-599 is more than half the clip's own.
 """
 
 from __future__ import annotations
@@ -87,25 +91,36 @@ def real_trend() -> dict:
 
 
 def control(model, seeds: int, seconds: float) -> dict:
-    """Measures along the arousal and valence axes (the other held at 2)."""
-    from emotive.models.fcrbm.generate import constant_context, generate_motion
+    """Measures along the arousal and valence axes (the other held at 2), per root path."""
+    from emotive.models.fcrbm.generate import (
+        ROOT_MODES,
+        constant_context,
+        decode_frames,
+        generate_motion,
+    )
 
     frames = round(seconds * model.fps)
-    out = {}
+    out: dict = {}
     for axis in ("arousal", "valence"):
-        rows = {}
+        rows: dict[str, dict] = {root: {} for root in ROOT_MODES}
         for value in AXIS_VALUES:
             va = (2.0, value) if axis == "arousal" else (value, 2.0)
-            samples = [measures(generate_motion(model, constant_context(*va, frames),
-                                                seed=s)[0]) for s in range(seeds)]
-            rows[str(value)] = {m: float(np.mean([r[m] for r in samples])) for m in samples[0]}
-        monotonic = {m: bool(all(rows[str(b)][m] > rows[str(a)][m]
-                                 for a, b in itertools.pairwise(MONOTONIC_AT)))
-                     for m in rows[str(AXIS_VALUES[0])]}
-        out[axis] = {"values": rows, "monotonic_1_2_3_3.5": monotonic}
-        print(f"{axis}: " + "; ".join(
-            f"{v}: root {r['root_speed']:.2f} joints {r['joint_speed']:.2f} steps "
-            f"{r['step_frequency']:.2f}" for v, r in rows.items()) + f"  monotonic {monotonic}")
+            runs = [generate_motion(model, constant_context(*va, frames), seed=s)[1]
+                    for s in range(seeds)]
+            for root in ROOT_MODES:
+                samples = [measures(decode_frames(model, run, root=root)) for run in runs]
+                rows[root][str(value)] = {m: float(np.mean([r[m] for r in samples]))
+                                          for m in samples[0]}
+        out[axis] = {}
+        for root, table in rows.items():
+            monotonic = {m: bool(all(table[str(b)][m] > table[str(a)][m]
+                                     for a, b in itertools.pairwise(MONOTONIC_AT)))
+                         for m in table[str(AXIS_VALUES[0])]}
+            out[axis][root] = {"values": table, "monotonic_1_2_3_3.5": monotonic}
+            print(f"{axis} (root {root}): " + "; ".join(
+                f"{v}: root {r['root_speed']:.2f} joints {r['joint_speed']:.2f} steps "
+                f"{r['step_frequency']:.2f}" for v, r in table.items())
+                + f"  monotonic {monotonic}")
     return out
 
 
@@ -115,7 +130,42 @@ def _item(name, motion, context_emotions, labels):
     return EvaluatedMotion(name, motion, context_emotions, labels)
 
 
-def emotions_and_transitions(model, seeds: int, seconds: float, long_seconds: float) -> dict:
+def real_ceiling(checkpoint: Path | None, classifier) -> dict:
+    """Per emotion: the training style of the checkpoint nearest the emotion's valence/arousal
+    and the classifier's window accuracy on that style's real walks (every split)."""
+    from emotive.data.clips import load_clips
+    from emotive.data.emotion import VALENCE_AROUSAL, style_to_label
+    from emotive.eval.classifier import window_labels
+    from emotive.models.fcrbm.generate import default_checkpoint_path, emotion_context
+    from emotive.models.fcrbm.training import FCRBMTrainSettings, load_fcrbm_checkpoint
+
+    *_, ckpt = load_fcrbm_checkpoint(checkpoint or default_checkpoint_path())
+    settings = FCRBMTrainSettings(**ckpt["train"])
+    clips: dict[str, list] = {}
+    for dataset in settings.datasets:
+        for clip in load_clips(dataset, contents=settings.contents):
+            key = f"{dataset}:{clip.style}"
+            point = VALENCE_AROUSAL.get(style_to_label(clip.style))
+            if point is None or (settings.styles and key not in settings.styles):
+                continue
+            clips.setdefault(key, []).append((2.0 + np.array([point.valence, point.arousal]),
+                                              clip.motion))
+    out = {}
+    for emotion in EMOTIONS:
+        target = emotion_context(emotion)
+        style = min(clips, key=lambda k: float(np.linalg.norm(clips[k][0][0] - target)))
+        read = [label for _, motion in clips[style]
+                if motion.duration >= classifier.config.min_seconds
+                for label in window_labels(classifier.classify(motion)[1], classifier.labels)]
+        out[emotion] = {"style": style,
+                        "distance": float(np.linalg.norm(clips[style][0][0] - target)),
+                        "accuracy": float(np.mean([r == emotion for r in read])),
+                        "windows": len(read)}
+    return out
+
+
+def emotions_and_transitions(model, checkpoint: Path | None, seeds: int, seconds: float,
+                             long_seconds: float) -> dict:
     """The emotion, affect, transition and long-run suites on generated motion."""
     from emotive.data.emotion import Emotion, EmotionSchedule
     from emotive.eval.classifier import load_default_classifier
@@ -128,6 +178,7 @@ def emotions_and_transitions(model, seeds: int, seconds: float, long_seconds: fl
     )
     from emotive.models.fcrbm.generate import (
         constant_context,
+        decode_frames,
         emotion_context,
         generate_motion,
         schedule_context,
@@ -137,18 +188,26 @@ def emotions_and_transitions(model, seeds: int, seconds: float, long_seconds: fl
     labels = classifier.labels
     reference = real_reference(labels)
     frames = round(seconds * model.fps)
-    singles = []
+    singles, model_root = [], []
     for emotion, s in itertools.product(EMOTIONS, range(seeds)):
-        motion, _ = generate_motion(model, constant_context(*emotion_context(emotion), frames),
-                                    seed=s, name=f"{emotion}-{s}")
+        motion, run = generate_motion(model, constant_context(*emotion_context(emotion), frames),
+                                      seed=s, name=f"{emotion}-{s}")
         intended = np.repeat(Emotion.one_hot(emotion, labels).weights[None], motion.num_frames, 0)
         singles.append(_item(f"{emotion}-{s}", motion, intended, labels))
+        model_root.append(_item(f"{emotion}-{s}", decode_frames(model, run, root="model"),
+                                intended, labels))
     out = {"emotion": emotion_suite(singles, classifier),
-           "affect": affect_suite(singles, reference)}
-    e = out["emotion"]
-    print(f"perceived emotion: window accuracy {e['window_accuracy']:.3f}, real "
-          f"{e['real_window_accuracy']:.3f} (share {e['share_of_real_accuracy']:.2f}); "
-          f"confusion {e['confusion']} over {e['labels']}")
+           "emotion_model_root": emotion_suite(model_root, classifier),
+           "affect": affect_suite(singles, reference),
+           "real_ceiling": real_ceiling(checkpoint, classifier)}
+    for key in ("emotion", "emotion_model_root"):
+        e = out[key]
+        print(f"perceived emotion ({key}): window accuracy {e['window_accuracy']:.3f}, real "
+              f"{e['real_window_accuracy']:.3f} (share {e['share_of_real_accuracy']:.2f}); "
+              f"confusion {e['confusion']} over {e['labels']}")
+    print("the classifier on the checkpoint's real training walks nearest each emotion: "
+          + "; ".join(f"{k} ({r['style']}, {r['distance']:.2f} away) {r['accuracy']:.2f}"
+                      for k, r in out["real_ceiling"].items()))
     for row in out["affect"]["labels"]:
         print(f"affect {row['label']}: Frechet to real {row.get('frechet_to_real', 'n/a'):.3g} "
               f"(real train to real {row.get('frechet_real_train_to_real', float('nan')):.3g})")
@@ -189,7 +248,7 @@ def emotions_and_transitions(model, seeds: int, seconds: float, long_seconds: fl
     _, frames_std = generate_motion(model, context, seed=0)
     long_items = []
     for k, emotion in enumerate(EMOTIONS):
-        motion = model.codec.decode(frames_std[k], f"long-{emotion}")
+        motion = decode_frames(model, frames_std[k], f"long-{emotion}")
         intended = np.repeat(Emotion.one_hot(emotion, labels).weights[None], motion.num_frames, 0)
         long_items.append(_item(f"long-{emotion}", motion, intended, labels))
     out["stability"] = longrun_suite(long_items, reference)
@@ -229,6 +288,7 @@ def walking(model, checkpoint: Path | None, seeds: int) -> dict:
     """The walking screen of the module docstring."""
     from emotive.models.fcrbm.generate import (
         constant_context,
+        decode_frames,
         default_checkpoint_path,
         emotion_context,
         generate_motion,
@@ -244,7 +304,7 @@ def walking(model, checkpoint: Path | None, seeds: int) -> dict:
     _, frames = generate_motion(model, context, seed=0)
     mean_frame: dict[str, int] = dict.fromkeys(WALK_EMOTIONS, 0)
     for emotion, run in zip(runs, frames, strict=True):
-        r = measures(model.codec.decode(run))
+        r = measures(decode_frames(model, run))
         mean_frame[emotion] += r["joint_speed"] > 0.25 and r["step_frequency"] > 0.8
     print(f"walking from the mean frame: {sum(mean_frame.values())} of {len(runs)} runs "
           f"{mean_frame}")
@@ -294,8 +354,8 @@ def main() -> None:
                 f"{k}: root {r['root_speed']:.2f} joints {r['joint_speed']:.2f} steps "
                 f"{r['step_frequency']:.2f} ({r['clips']} clips)" for k, r in table.items()))
     if args.part in ("all", "suites"):
-        record["suites"] = emotions_and_transitions(model, args.seeds, args.seconds,
-                                                    args.long_seconds)
+        record["suites"] = emotions_and_transitions(model, args.checkpoint, args.seeds,
+                                                    args.seconds, args.long_seconds)
     if args.part in ("all", "speed"):
         record["speed"] = speed(model)
     if args.part == "walking":

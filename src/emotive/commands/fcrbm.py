@@ -91,6 +91,12 @@ def generate(
                      show_default=False),
     ] = None,
     seed: Annotated[int, typer.Option(help="Seed of the hidden samples.")] = 0,
+    root: Annotated[
+        str,
+        typer.Option(help="Root path: 'feet' rebuilds it from the stance foot so the root "
+                          "cannot glide while the legs stand (a post-process); 'model' keeps "
+                          "the model's own root velocity."),
+    ] = "feet",
     preview: PreviewOpt = None,
 ) -> None:
     """Generate movement for a valence/arousal point, an emotion, or a schedule of them."""
@@ -132,7 +138,7 @@ def generate(
     console = Console(stderr=True)
     with console.status(f"generating {frames} frames ..."):
         motion, _ = generate_motion(fcrbm, context, seed=seed, primer=start, gibbs=gibbs,
-                                    name=out.stem)
+                                    name=out.stem, root=root)
     write_bvh(motion, out)
     v, a = np.round(context[0], 2), np.round(context[-1], 2)
     typer.echo(f"wrote {out}: {motion.num_frames} frames ({motion.num_frames / motion.fps:.1f} s)"

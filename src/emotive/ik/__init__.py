@@ -4,7 +4,8 @@ Five IK chains (two legs, two arms with elbow targets, head-torso) with joint li
 damped least squares solver warm-started from the previous frame, extraction of pelvis,
 end-effector and elbow trajectories in chain frames, and helpers built on them:
 :func:`reconstruct` rebuilds a clip from its own trajectories, :func:`pin_feet` keeps planted
-feet still (foot-plant cleanup for the generators).
+feet still (foot-plant cleanup for the generators) and :func:`root_from_stance` rebuilds a
+gliding root's path from the stance foot.
 """
 
 from emotive.ik.api import IKResult, pin_feet, rebuild, reconstruct, solve_chains
@@ -19,6 +20,7 @@ from emotive.ik.chains import (
     resolve_chains,
 )
 from emotive.ik.solver import ChainSolution, Unreachable, solve_chain
+from emotive.ik.stance_root import root_from_stance
 from emotive.ik.trajectories import (
     PelvisTrajectory,
     Trajectories,
@@ -51,6 +53,7 @@ __all__ = [
     "rebuild",
     "reconstruct",
     "resolve_chains",
+    "root_from_stance",
     "solve_chain",
     "solve_chains",
     "to_frame",

@@ -21,6 +21,7 @@ from emotive.models.fcrbm.generate import (
     constant_context,
     emotion_context,
     generate_motion,
+    load_fcrbm_model,
     schedule_context,
     seed_frames,
 )
@@ -318,6 +319,7 @@ def test_generate_command_writes_bvh_and_preview(checkpoint, tmp_path):
         (["--valence", "nan", "--arousal", 2], FCRBMInputError, ["valence and arousal"]),
         (["--valence", 9, "--arousal", 2], FCRBMInputError, ["[0.25, 5]"]),
         (["--emotion", "bored"], EmotionError, ["bored"]),
+        (["--emotion", "sad", "--root", "hips"], FCRBMInputError, ["--root", "feet", "model"]),
         (["--emotion", "sad", "--model", "missing.pt"], ConfigError, ["missing.pt",
                                                                     "no such checkpoint"]),
     ],
@@ -329,6 +331,20 @@ def test_generate_command_errors_write_nothing(checkpoint, tmp_path, args, error
     before = sorted(tmp_path.iterdir())
     result = invoke_fcrbm("generate", *args, "--seconds", 1, "--out", tmp_path / "x.bvh")
     assert_failed_cleanly(result, error, words, tmp_path, before)
+
+
+def test_the_root_path_is_rebuilt_from_the_feet_unless_asked_for_the_models(checkpoint):
+    from emotive.ik import root_from_stance
+
+    model = load_fcrbm_model(checkpoint)
+    context = constant_context(2, 2, 60)
+    feet, frames = generate_motion(model, context, seed=3)
+    own, same = generate_motion(model, context, seed=3, root="model")
+    np.testing.assert_array_equal(frames, same)
+    np.testing.assert_array_equal(own.positions, model.codec.decode(frames).positions)
+    np.testing.assert_allclose(feet.positions, root_from_stance(own).positions)
+    np.testing.assert_array_equal(feet.rotations, own.rotations)
+    assert not np.allclose(feet.positions[:, 0], own.positions[:, 0])
 
 
 def test_generate_command_refuses_a_primer_from_another_rig(checkpoint, tmp_path):

@@ -15,6 +15,12 @@ walk starts most reliably, then changes linearly to the first requested context 
 started from six recorded frames of the requested state instead, which a checkpoint cannot
 ship).
 
+Root: the model predicts the root's velocity beside the pose, and where its legs slow down or
+step in place that velocity can go on (the root glides). By default (``root="feet"``) the
+decoded root path is rebuilt from the stance foot (:func:`emotive.ik.root_from_stance`, a
+post-process: the planted foot stays still and the root moves by what the legs do);
+``root="model"`` keeps the model's own root velocity.
+
 Legend: ``T`` frames, ``D`` visible units, ``N`` order.
 """
 
@@ -32,6 +38,7 @@ import torch
 
 from emotive.core.motion import Motion
 from emotive.errors import EmotiveError
+from emotive.ik.stance_root import root_from_stance
 from emotive.models.fcrbm.data import FrameCodec, frame_vectors
 from emotive.models.fcrbm.model import FCRBM
 
@@ -43,6 +50,8 @@ WARMUP_SECONDS = 2.0
 WARMUP_CONTEXT = (2.0, 2.0)
 #: Seconds of linear change from the warm-up to the first requested context (also dropped).
 WARMUP_RAMP_SECONDS = 1.0
+#: Root paths of :func:`generate_motion`: rebuilt from the stance foot, or the model's own.
+ROOT_MODES = ("feet", "model")
 #: A standardized frame value beyond this means the model's dynamics diverged.
 DIVERGED = 25.0
 
@@ -210,6 +219,7 @@ def generate_motion(
     primer: Motion | None = None,
     gibbs: int | None = None,
     name: str = "fcrbm",
+    root: str = "feet",
 ) -> tuple[Motion, np.ndarray]:
     """Generate ``T`` frames following a per-frame context.
 
@@ -221,13 +231,15 @@ def generate_motion(
         primer: starting clip (see :func:`seed_frames`).
         gibbs: Gibbs iterations per frame (default: the config's).
         name: name of the motion.
+        root: ``"feet"`` or ``"model"`` (:data:`ROOT_MODES`, module doc).
 
     Returns:
         The motion (starting at the origin, facing +Z; the first agent's when batched) and the
-        ``(T, D)`` (or ``(B, T, D)``) standardized frames.
+        ``(T, D)`` (or ``(B, T, D)``) standardized frames (always the model's own root; decode
+        other agents with :func:`decode_frames`).
 
     Raises:
-        FCRBMInputError: bad context, primer or gibbs.
+        FCRBMInputError: bad context, primer, gibbs or root.
         FCRBMDivergedError: the frames ran out of the data's range.
     """
     z = check_context(context, "context")
@@ -238,6 +250,8 @@ def generate_motion(
         raise FCRBMInputError("generate at least one frame")
     if gibbs is not None and gibbs < 1:
         raise FCRBMInputError(f"--gibbs must be >= 1, got {gibbs}")
+    if root not in ROOT_MODES:
+        raise FCRBMInputError(f"--root must be one of {', '.join(ROOT_MODES)}, got {root!r}")
     start = seed_frames(model, primer)
     lead = np.zeros((0, agents, 2)) if primer is not None else warmup_context(z[0], model.fps)
     warm = len(lead)
@@ -257,8 +271,15 @@ def generate_motion(
             "there: use a context closer to its training points or retrain with more past_noise"
         )
     out = out[:, warm:]
-    motion = model.codec.decode(out[0], name)
+    motion = decode_frames(model, out[0], name, root)
     return motion, (out if batched else out[0])
+
+
+def decode_frames(model: FCRBMModel, frames: np.ndarray, name: str = "fcrbm",
+                  root: str = "feet") -> Motion:
+    """``(T, D)`` standardized frames to a clip, its root path as ``root`` says (module doc)."""
+    motion = model.codec.decode(frames, name)
+    return root_from_stance(motion) if root == "feet" else motion
 
 
 def motion_summary(motion: Motion, mover: int) -> dict[str, Any]:
