@@ -13,10 +13,12 @@ references (``EMOTIVE_DATA`` or ``../shared/data``).
   walks of the data sets grouped by their arousal or valence (the training data's own trend).
 * **emotion**: motion generated at the valence/arousal of happy, sad, angry and neutral, judged
   by the evaluation suite's classifier (its emotion suite): window accuracy against the
-  classifier's accuracy on real held-out walks (with either root path); the classifier's reading
-  of the checkpoint's own real training walks at the style nearest each emotion (what the
-  model could reach by copying its data); and the affect suite's Fréchet distance of the 26
-  affective and movement features to real walks of the same emotion.
+  classifier's accuracy on real held-out walks (with either root path); the classifier's
+  reading of the checkpoint's own real training walks at the style nearest each emotion (what
+  the model could reach by copying its data); the same suite on motion started from frames of
+  those real walks, as in the paper (the requested emotion's, and neutral's); and the affect
+  suite's Fréchet distance of the 26 affective and movement features to real walks of the same
+  emotion.
 * **transition**: every ordered pair of the four emotions, 10 s each side with a one-second
   linear change, through the transition suite (jerk against the real data's windowed jerk,
   perceived emotion before and after), with the root speed per second through the change.
@@ -130,37 +132,76 @@ def _item(name, motion, context_emotions, labels):
     return EvaluatedMotion(name, motion, context_emotions, labels)
 
 
-def real_ceiling(checkpoint: Path | None, classifier) -> dict:
-    """Per emotion: the training style of the checkpoint nearest the emotion's valence/arousal
-    and the classifier's window accuracy on that style's real walks (every split)."""
+def nearest_training_walks(checkpoint: Path | None) -> dict:
+    """Per emotion: the checkpoint's training style nearest the emotion's valence/arousal, its
+    distance and that style's real walks (every split), ``{emotion: (style, distance,
+    [Motion])}``."""
     from emotive.data.clips import load_clips
     from emotive.data.emotion import VALENCE_AROUSAL, style_to_label
-    from emotive.eval.classifier import window_labels
     from emotive.models.fcrbm.generate import default_checkpoint_path, emotion_context
     from emotive.models.fcrbm.training import FCRBMTrainSettings, load_fcrbm_checkpoint
 
     *_, ckpt = load_fcrbm_checkpoint(checkpoint or default_checkpoint_path())
     settings = FCRBMTrainSettings(**ckpt["train"])
-    clips: dict[str, list] = {}
+    points: dict[str, np.ndarray] = {}
+    walks: dict[str, list] = {}
     for dataset in settings.datasets:
         for clip in load_clips(dataset, contents=settings.contents):
             key = f"{dataset}:{clip.style}"
             point = VALENCE_AROUSAL.get(style_to_label(clip.style))
             if point is None or (settings.styles and key not in settings.styles):
                 continue
-            clips.setdefault(key, []).append((2.0 + np.array([point.valence, point.arousal]),
-                                              clip.motion))
+            points[key] = 2.0 + np.array([point.valence, point.arousal])
+            walks.setdefault(key, []).append(clip.motion)
     out = {}
     for emotion in EMOTIONS:
         target = emotion_context(emotion)
-        style = min(clips, key=lambda k: float(np.linalg.norm(clips[k][0][0] - target)))
-        read = [label for _, motion in clips[style]
-                if motion.duration >= classifier.config.min_seconds
+        style = min(points, key=lambda k: float(np.linalg.norm(points[k] - target)))
+        out[emotion] = (style, float(np.linalg.norm(points[style] - target)), walks[style])
+    return out
+
+
+def real_ceiling(nearest: dict, classifier) -> dict:
+    """Per emotion: the classifier's window accuracy on the real walks of the nearest training
+    style (:func:`nearest_training_walks`)."""
+    from emotive.eval.classifier import window_labels
+
+    out = {}
+    for emotion, (style, distance, motions) in nearest.items():
+        read = [label for motion in motions if motion.duration >= classifier.config.min_seconds
                 for label in window_labels(classifier.classify(motion)[1], classifier.labels)]
-        out[emotion] = {"style": style,
-                        "distance": float(np.linalg.norm(clips[style][0][0] - target)),
+        out[emotion] = {"style": style, "distance": distance,
                         "accuracy": float(np.mean([r == emotion for r in read])),
                         "windows": len(read)}
+    return out
+
+
+def primed(model, nearest: dict, classifier, seeds: int, seconds: float) -> dict:
+    """The emotion suite on motion started from real frames, as in the paper: ``N + 1`` frames
+    from frame 30 (then 60, 90, ... when there are fewer walks than seeds) of the walks of the
+    training style nearest the requested emotion (``same``), or of the style nearest neutral
+    (``from_neutral``: can the context alone lead the motion to the emotion?)."""
+    from emotive.core.ops import crop
+    from emotive.data.emotion import Emotion
+    from emotive.eval.suites import emotion_suite
+    from emotive.models.fcrbm.generate import constant_context, emotion_context, generate_motion
+
+    frames, order = round(seconds * model.fps), model.network.config.order
+    labels = classifier.labels
+    out = {}
+    for mode in ("same", "from_neutral"):
+        items = []
+        for emotion in EMOTIONS:
+            walks = nearest[emotion if mode == "same" else "neutral"][2]
+            for s in range(seeds):
+                walk, start = walks[s % len(walks)], 30 * (1 + s // len(walks))
+                motion, _ = generate_motion(
+                    model, constant_context(*emotion_context(emotion), frames), seed=s,
+                    primer=crop(walk, start, start + order + 1), name=f"{emotion}-{s}")
+                intended = np.repeat(Emotion.one_hot(emotion, labels).weights[None],
+                                     motion.num_frames, 0)
+                items.append(_item(f"{emotion}-{s}", motion, intended, labels))
+        out[mode] = emotion_suite(items, classifier)
     return out
 
 
@@ -198,13 +239,19 @@ def emotions_and_transitions(model, checkpoint: Path | None, seeds: int, seconds
                                 intended, labels))
     out = {"emotion": emotion_suite(singles, classifier),
            "emotion_model_root": emotion_suite(model_root, classifier),
-           "affect": affect_suite(singles, reference),
-           "real_ceiling": real_ceiling(checkpoint, classifier)}
+           "affect": affect_suite(singles, reference)}
+    nearest = nearest_training_walks(checkpoint)
+    out["real_ceiling"] = real_ceiling(nearest, classifier)
+    out["emotion_primed"] = primed(model, nearest, classifier, seeds, seconds)
     for key in ("emotion", "emotion_model_root"):
         e = out[key]
         print(f"perceived emotion ({key}): window accuracy {e['window_accuracy']:.3f}, real "
               f"{e['real_window_accuracy']:.3f} (share {e['share_of_real_accuracy']:.2f}); "
               f"confusion {e['confusion']} over {e['labels']}")
+    for mode, e in out["emotion_primed"].items():
+        print(f"perceived emotion started from real frames ({mode}): window accuracy "
+              f"{e['window_accuracy']:.3f} (share {e['share_of_real_accuracy']:.2f}); "
+              f"confusion {e['confusion']}")
     print("the classifier on the checkpoint's real training walks nearest each emotion: "
           + "; ".join(f"{k} ({r['style']}, {r['distance']:.2f} away) {r['accuracy']:.2f}"
                       for k, r in out["real_ceiling"].items()))
