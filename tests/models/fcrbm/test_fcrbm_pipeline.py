@@ -19,6 +19,7 @@ from emotive.models.fcrbm.generate import (
     FCRBMInputError,
     FCRBMModel,
     constant_context,
+    decode_frames,
     emotion_context,
     generate_motion,
     load_fcrbm_model,
@@ -345,6 +346,8 @@ def test_the_root_path_is_rebuilt_from_the_feet_unless_asked_for_the_models(chec
     np.testing.assert_allclose(feet.positions, root_from_stance(own).positions)
     np.testing.assert_array_equal(feet.rotations, own.rotations)
     assert not np.allclose(feet.positions[:, 0], own.positions[:, 0])
+    with pytest.raises(FCRBMInputError, match="--root must be one of feet, model"):
+        decode_frames(model, frames, root="hips")
 
 
 def test_generate_command_refuses_a_primer_from_another_rig(checkpoint, tmp_path):

@@ -250,8 +250,7 @@ def generate_motion(
         raise FCRBMInputError("generate at least one frame")
     if gibbs is not None and gibbs < 1:
         raise FCRBMInputError(f"--gibbs must be >= 1, got {gibbs}")
-    if root not in ROOT_MODES:
-        raise FCRBMInputError(f"--root must be one of {', '.join(ROOT_MODES)}, got {root!r}")
+    check_root(root)
     start = seed_frames(model, primer)
     lead = np.zeros((0, agents, 2)) if primer is not None else warmup_context(z[0], model.fps)
     warm = len(lead)
@@ -275,9 +274,20 @@ def generate_motion(
     return motion, (out if batched else out[0])
 
 
+def check_root(root: str) -> None:
+    """Raise :class:`FCRBMInputError` unless ``root`` is one of :data:`ROOT_MODES`."""
+    if root not in ROOT_MODES:
+        raise FCRBMInputError(f"--root must be one of {', '.join(ROOT_MODES)}, got {root!r}")
+
+
 def decode_frames(model: FCRBMModel, frames: np.ndarray, name: str = "fcrbm",
                   root: str = "feet") -> Motion:
-    """``(T, D)`` standardized frames to a clip, its root path as ``root`` says (module doc)."""
+    """``(T, D)`` standardized frames to a clip, its root path as ``root`` says (module doc).
+
+    Raises:
+        FCRBMInputError: ``root`` is not one of :data:`ROOT_MODES`.
+    """
+    check_root(root)
     motion = model.codec.decode(frames, name)
     return root_from_stance(motion) if root == "feet" else motion
 
