@@ -178,10 +178,10 @@ def real_ceiling(nearest: dict, classifier) -> dict:
 
 def primed(model, nearest: dict, classifier, seeds: int, seconds: float) -> dict:
     """The emotion suite on motion started from real frames, as in the paper: ``N + 1`` frames
-    from frame 30 (then 60, 90, ... when there are fewer walks than seeds) of the walks long
-    enough for every seed of the training style nearest the requested emotion (``same``), or
-    of the style nearest neutral (``from_neutral``: can the context alone lead the motion to
-    the emotion?)."""
+    from frame 30 (then 60, 90, ... when there are fewer walks than seeds, wrapping within the
+    walk) of the walks of the training style nearest the requested emotion (``same``), or of
+    the style nearest neutral (``from_neutral``: can the context alone lead the motion to the
+    emotion?)."""
     from emotive.core.ops import crop
     from emotive.data.emotion import Emotion
     from emotive.eval.suites import emotion_suite
@@ -194,9 +194,10 @@ def primed(model, nearest: dict, classifier, seeds: int, seconds: float) -> dict
         items = []
         for emotion in EMOTIONS:
             walks = [m for m in nearest[emotion if mode == "same" else "neutral"][2]
-                     if m.num_frames > 30 * (seeds + 1) + order]
+                     if m.num_frames > 31 + order]
             for s in range(seeds):
-                walk, start = walks[s % len(walks)], 30 * (1 + s // len(walks))
+                walk = walks[s % len(walks)]
+                start = 30 + (30 * (s // len(walks))) % (walk.num_frames - 30 - order)
                 motion, _ = generate_motion(
                     model, constant_context(*emotion_context(emotion), frames), seed=s,
                     primer=crop(walk, start, start + order + 1), name=f"{emotion}-{s}")
