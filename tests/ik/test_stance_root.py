@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from tests.ik.ik_helpers import make_humanoid
+from ik_helpers import make_humanoid
 
 from emotive.core.roles import resolve_roles
 from emotive.features.contacts import foot_positions

@@ -128,6 +128,22 @@ def _clean_runs(mask: np.ndarray, min_contact: int, min_gap: int) -> np.ndarray:
     return mask
 
 
+def ground_heights(feet: np.ndarray, thresholds: ContactThresholds | None = None,
+                   up_axis: int = 1) -> np.ndarray:
+    """``(T, P)`` height of each foot point above its own ground: its ``ground_percentile``
+    height over the clip.
+
+    Args:
+        feet: ``(T, P, 3)`` world positions of the foot points (e.g. the heels and toes of
+            :func:`foot_positions`, reshaped).
+        thresholds: settings (:class:`ContactThresholds` defaults when ``None``).
+        up_axis: index of the vertical coordinate (1: Y up).
+    """
+    th = thresholds or ContactThresholds()
+    height = feet[..., up_axis]
+    return height - np.percentile(height, th.ground_percentile, axis=0)
+
+
 def foot_contacts(
     positions: np.ndarray,
     roles: JointRoles,
@@ -156,8 +172,7 @@ def foot_contacts(
     scale = leg_length(positions, roles)
     if not scale > 0:
         return np.zeros((n, 2), dtype=bool)
-    height = feet[..., up_axis]
-    height = height - np.percentile(height, th.ground_percentile, axis=0)
+    height = ground_heights(feet, th, up_axis)
     if n > 1:
         speed = np.linalg.norm(np.gradient(feet, axis=0), axis=-1) * fps
     else:

@@ -5,9 +5,8 @@ the root keeps its speed while the legs slow down or step in place. :func:`root_
 replaces the root's horizontal displacement of each frame by the one that keeps the stance
 foot still on the ground:
 
-* every heel (ankle) and toe point gets a height above its own ground (its
-  ``ground_percentile`` height over the clip, as in
-  :func:`emotive.features.contacts.foot_contacts`);
+* every heel (ankle) and toe point gets a height above its own ground
+  (:func:`emotive.features.contacts.ground_heights`, as for the contacts);
 * between frames ``t - 1`` and ``t`` the stance point is the point lowest on average over the
   two frames;
 * the whole body is shifted horizontally by minus a share ``c`` of that point's world
@@ -39,7 +38,12 @@ from scipy.ndimage import gaussian_filter1d
 
 from emotive.core.motion import Motion
 from emotive.core.roles import resolve_roles
-from emotive.features.contacts import ContactThresholds, foot_positions, leg_length
+from emotive.features.contacts import (
+    ContactThresholds,
+    foot_positions,
+    ground_heights,
+    leg_length,
+)
 
 #: Standard deviation (seconds) of the Gaussian smoothing of the per-frame shifts.
 SMOOTH_SECONDS = 2.0 / 30.0
@@ -96,7 +100,7 @@ def root_from_stance(
     leg = leg_length(points, roles)
     if not leg > 0:
         return motion
-    heights = feet[..., UP_AXIS] - np.percentile(feet[..., UP_AXIS], th.ground_percentile, axis=0)
+    heights = ground_heights(feet, th, UP_AXIS)
     point, share = stance_weights(heights, leg, th)
     axes = list(GROUND_AXES)
     steps = np.arange(motion.num_frames - 1)
