@@ -48,7 +48,7 @@ def factored_generate(net: FCRBM, past: torch.Tensor, context: torch.Tensor,
     """
     window, batch, gibbs = past.clone(), past.shape[0], net.config.gibbs
     frames = []
-    for z in context:
+    for z in net.features(context):
         a_hat, b_hat = net._biases(window.reshape(batch, -1), z)
         zf = z @ net.w_ctx
         v = window[:, -1]

@@ -7,16 +7,22 @@ from dataclasses import replace
 import pytest
 import torch
 
-from emotive.models.fcrbm.model import FCRBM, FCRBMConfig, sliding_windows
+from emotive.models.fcrbm.model import (
+    CONTEXT_FEATURES,
+    FCRBM,
+    RBF_CENTRES,
+    FCRBMConfig,
+    sliding_windows,
+)
 
 B, N, D, H, C = 5, 3, 4, 6, 2
 
 
-@pytest.fixture
-def model() -> FCRBM:
+@pytest.fixture(params=CONTEXT_FEATURES)
+def model(request) -> FCRBM:
     cfg = FCRBMConfig(
         visible=D, order=N, hidden=H, factors=7, factors_past_visible=8,
-        factors_past_hidden=9, gibbs=4, init_std=0.3, seed=1,
+        factors_past_hidden=9, gibbs=4, init_std=0.3, seed=1, context_features=request.param,
     )  # fmt: skip
     m = FCRBM(cfg).double()
     with torch.no_grad():
@@ -81,8 +87,9 @@ def test_zero_interaction_factors_leave_rbm_with_dynamic_biases(model: FCRBM, ba
     p = past.reshape(B, N * D)
     tensor_a = torch.einsum("kf,if,lf->kil", model.a_past, model.a_vis, model.a_ctx)
     tensor_b = torch.einsum("kf,jf,lf->kjl", model.b_past, model.b_hid, model.b_ctx)
-    a_hat = model.vis_bias + torch.einsum("bk,kil,bl->bi", p, tensor_a, z)
-    b_hat = model.hid_bias + torch.einsum("bk,kjl,bl->bj", p, tensor_b, z)
+    phi = model.features(z)
+    a_hat = model.vis_bias + torch.einsum("bk,kil,bl->bi", p, tensor_a, phi)
+    b_hat = model.hid_bias + torch.einsum("bk,kjl,bl->bj", p, tensor_b, phi)
     h = torch.bernoulli(torch.full((B, H), 0.5, dtype=v.dtype))
     mean = model.visible_mean(h, past, z).detach()
     torch.testing.assert_close(mean, a_hat)
@@ -91,10 +98,10 @@ def test_zero_interaction_factors_leave_rbm_with_dynamic_biases(model: FCRBM, ba
 
 
 def test_fixed_context_reduces_to_crbm(model: FCRBM, batch) -> None:
-    """At one context the FCRBM is a conditional RBM with weights ``Wv diag(z Wz) Whᵀ``."""
+    """At one context the FCRBM is a conditional RBM with weights ``Wv diag(φ(z) Wz) Whᵀ``."""
     v, past, _ = batch
     z = torch.tensor([[1.5, 2.5]], dtype=v.dtype).expand(B, C)
-    w = model.w_vis @ torch.diag(z[0] @ model.w_ctx) @ model.w_hid.T
+    w = model.w_vis @ torch.diag(model.features(z[0]) @ model.w_ctx) @ model.w_hid.T
     a_hat, b_hat = model.dynamic_biases(past, z)
     h = torch.bernoulli(torch.full((B, H), 0.5, dtype=v.dtype))
     torch.testing.assert_close(model.visible_mean(h, past, z), a_hat + h @ w.T)
@@ -177,6 +184,51 @@ def test_bad_shapes_raise_value_error(model: FCRBM, batch, call, message: str) -
     v, past, z = batch
     with pytest.raises(ValueError, match=message):
         call(model, v, past, z)
+
+
+def test_linear_features_are_the_context_and_rbf_adds_a_bump_per_grid_point(model, batch):
+    _, _, z = batch
+    phi = model.features(z)
+    torch.testing.assert_close(phi[:, :C], z)
+    if model.config.context_features == "linear":
+        assert phi.shape == (B, C) and model.w_ctx.shape[0] == C
+        return
+    torch.testing.assert_close(phi, model.features(z.clamp(1, 3)))  # the batch is inside
+    assert phi.shape == (B, C + 9) and model.w_ctx.shape[0] == C + 9
+    centres = RBF_CENTRES.double()
+    at_centres = model.features(centres)[:, C:]
+    torch.testing.assert_close(torch.diagonal(at_centres), torch.ones(9, dtype=torch.float64))
+    # (1, 1) and (1, 2) are one unit apart: exp(-1 / (2 s²)).
+    expected = torch.exp(torch.tensor(-0.5 / model.config.rbf_width**2, dtype=torch.float64))
+    torch.testing.assert_close(at_centres[0, 1], expected)
+    # Beyond the grid the features go on linearly from the edge, by its last unit step.
+    def at(v: float, a: float) -> torch.Tensor:
+        return model.features(torch.tensor([[v, a]], dtype=torch.float64))[0]
+
+    torch.testing.assert_close(at(3.5, 2.0), at(3, 2) + 0.5 * (at(3, 2) - at(2, 2)))
+    torch.testing.assert_close(at(0.5, 3.25),
+                               at(1, 3) + 0.5 * (at(1, 3) - at(2, 3))
+                               + 0.25 * (at(1, 3) - at(1, 2)))
+    torch.testing.assert_close(at(3.5, 2.0)[:C], torch.tensor([3.5, 2.0], dtype=torch.float64))
+
+
+def test_rbf_features_give_each_grid_point_gates_of_its_own() -> None:
+    """Linear gating blends two fixed matrices (rank 2 over the 9 grid points); the bumps make
+    the gates at the grid points independent, so each point can have its own weights."""
+    linear = FCRBM(FCRBMConfig(visible=D, hidden=H, context_features="linear"))
+    rbf = FCRBM(FCRBMConfig(visible=D, hidden=H, context_features="rbf"))
+    assert torch.linalg.matrix_rank(linear.features(RBF_CENTRES)) == 2
+    assert torch.linalg.matrix_rank(rbf.features(RBF_CENTRES)) == 9
+
+
+@pytest.mark.parametrize(("change", "message"), [
+    ({"context_features": "cubic"}, "context_features must be one of"),
+    ({"context_features": "rbf", "context": 3}, "needs context = 2"),
+    ({"rbf_width": 0}, "rbf_width must be > 0"),
+])
+def test_bad_context_features_raise(change, message) -> None:
+    with pytest.raises(ValueError, match=message):
+        FCRBMConfig(visible=D, **change)
 
 
 def test_sliding_windows() -> None:
@@ -311,6 +363,6 @@ def test_without_visible_autoregression_generation_is_bounded(model_without_ar, 
             p.mul_(4.0)  # far larger weights than training leaves
     out = m.generate(100.0 * past, 3.5 * torch.ones_like(z), steps=300)
     # v = a + ((h Wh) * zf) Wvᵀ with h in [0, 1]: every frame within the sum of magnitudes.
-    zf = (3.5 * torch.ones_like(z)) @ m.w_ctx
+    zf = m.features(3.5 * torch.ones_like(z)) @ m.w_ctx
     bound = ((m.w_hid.abs().sum(0) * zf.abs()) @ m.w_vis.abs().T)
     assert torch.all((out - m.vis_bias).abs() <= bound[:, None] + 1e-9)

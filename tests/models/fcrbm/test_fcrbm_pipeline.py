@@ -241,6 +241,40 @@ def test_training_without_visible_autoregression(tmp_path):
     assert not (tmp_path / "bad.pt").exists()
 
 
+def test_rbf_context_features_train_resume_and_generate(tmp_path):
+    config = FCRBMConfig(visible=1, order=3, hidden=16, factors=8, factors_past_visible=8,
+                         factors_past_hidden=8, gibbs=3, init_std=0.1,
+                         visible_autoregression=False, context_features="rbf")
+    settings = FCRBMTrainSettings(epochs=1, batch_size=32)
+    data = synthetic_data(config.order)
+    train_fcrbm(config, settings, progress=False, out_dir=tmp_path, data=data)
+    more = train_fcrbm(config, replace(settings, epochs=2), progress=False, out_dir=tmp_path,
+                       data=data, resume=True)
+    assert [r["epoch"] for r in more.history] == [1, 2]
+    with pytest.raises(ConfigError, match="other settings"):
+        train_fcrbm(replace(config, context_features="linear"), replace(settings, epochs=3),
+                    progress=False, out_dir=tmp_path, data=data, resume=True)
+    network, codec, _ = load_fcrbm_checkpoint(tmp_path / "last.pt")
+    assert network.config.context_features == "rbf" and network.w_ctx.shape == (11, 8)
+    motion, frames = generate_motion(FCRBMModel(network, codec), constant_context(3.5, 1, 60))
+    assert motion.num_frames == 60 and np.isfinite(frames).all()
+
+
+def test_a_checkpoint_from_before_context_features_resumes_as_linear(tmp_path):
+    config = FCRBMConfig(visible=1, order=3, hidden=8, factors=4, factors_past_visible=4,
+                         factors_past_hidden=4, gibbs=2, visible_autoregression=False)
+    settings = FCRBMTrainSettings(epochs=1, batch_size=64)
+    data = synthetic_data(config.order)
+    train_fcrbm(config, settings, progress=False, out_dir=tmp_path, data=data)
+    ckpt = torch.load(tmp_path / "last.pt", weights_only=False)
+    del ckpt["config"]["context_features"]
+    torch.save(ckpt, tmp_path / "last.pt")
+    more = train_fcrbm(config, replace(settings, epochs=2), progress=False, out_dir=tmp_path,
+                       data=data, resume=True)
+    assert [r["epoch"] for r in more.history] == [1, 2]
+    assert more.model.config.context_features == "linear"
+
+
 def test_divergence_is_a_clear_error(tmp_path):
     config = FCRBMConfig(visible=1, order=3, hidden=8, factors=4, factors_past_visible=4,
                          factors_past_hidden=4, gibbs=2)

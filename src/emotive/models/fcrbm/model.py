@@ -32,9 +32,18 @@ its spectral radius grew past 1 at the higher valence/arousal values (1.1 at (2,
 (3, 3)): every sequence diverged there, and scaling it back below 1 damped the gait to a still
 pose.
 
+**Deviation (optional): radial context features.** In the paper every factor's gate is linear
+in the context, ``z·Wz``, so the weights at any valence/arousal are a blend of ``C = 2`` fixed
+matrices, and styles at different points can only differ by how much of each they get. With
+``context_features="rbf"`` the gates see ``φ(z)``: the context followed by a Gaussian bump per
+point of the paper's 1-3 grid (:meth:`FCRBM.features`), so each region of the plane can have
+weights of its own; between grid points the bumps blend, and beyond the grid the features
+extrapolate linearly from the edge.
+
 Legend: ``B`` batch, ``T`` frames, ``N`` order (past frames), ``D`` visible units, ``H`` hidden
-units, ``F`` factors, ``C`` context size. A past window ``(B, N, D)`` is in time order: index
-``-1`` is the frame just before the current one.
+units, ``F`` factors, ``C`` context size, ``G`` gating features (:func:`context_width`). A
+past window ``(B, N, D)`` is in time order: index ``-1`` is the frame just before the current
+one.
 """
 
 from __future__ import annotations
@@ -70,6 +79,10 @@ class FCRBMConfig:
         seed: seed of the initial weights and of the default sampling generator.
         visible_autoregression: keep the past-to-visible interaction (the paper's model);
             ``False`` leaves it out (see the module docstring).
+        context_features: what gates the factors: ``"linear"``, the context itself (the
+            paper's model), or ``"rbf"`` (valence/arousal only, ``C = 2``), the context
+            followed by :data:`RBF_CENTRES` Gaussian bumps (see :meth:`FCRBM.features`).
+        rbf_width: standard deviation of those bumps, in valence/arousal units.
     """
 
     visible: int
@@ -87,6 +100,8 @@ class FCRBMConfig:
     init_std: float = 0.01
     seed: int = 0
     visible_autoregression: bool = True
+    context_features: str = "linear"
+    rbf_width: float = 0.5
 
     def __post_init__(self) -> None:
         sizes = (
@@ -97,7 +112,7 @@ class FCRBMConfig:
             value = getattr(self, name)
             if not isinstance(value, int) or isinstance(value, bool) or value < 1:
                 raise ValueError(f"FCRBMConfig.{name} must be a positive integer, got {value!r}")
-        for name in ("learning_rate", "init_std"):
+        for name in ("learning_rate", "init_std", "rbf_width"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"FCRBMConfig.{name} must be > 0, got {getattr(self, name)!r}")
         if not 0 <= self.momentum < 1:
@@ -105,6 +120,12 @@ class FCRBMConfig:
         if not isinstance(self.visible_autoregression, bool):
             raise ValueError(f"FCRBMConfig.visible_autoregression must be true or false, got "
                              f"{self.visible_autoregression!r}")
+        if self.context_features not in CONTEXT_FEATURES:
+            raise ValueError(f"FCRBMConfig.context_features must be one of {CONTEXT_FEATURES}, "
+                             f"got {self.context_features!r}")
+        if self.context_features == "rbf" and self.context != 2:
+            raise ValueError("FCRBMConfig.context_features 'rbf' needs context = 2 (valence, "
+                             f"arousal), got {self.context}")
         if not self.weight_decay >= 0:
             raise ValueError(f"FCRBMConfig.weight_decay must be >= 0, got {self.weight_decay!r}")
 
@@ -122,6 +143,24 @@ class FCRBMConfig:
         return cls(**data)
 
 
+#: Gating features of the context (:attr:`FCRBMConfig.context_features`).
+CONTEXT_FEATURES = ("linear", "rbf")
+#: ``(K, 2)`` centres of the ``"rbf"`` features: the paper's valence/arousal grid, 1-3 by 1.
+RBF_CENTRES = torch.tensor([[v, a] for v in (1.0, 2.0, 3.0) for a in (1.0, 2.0, 3.0)])
+
+
+def _grid_features(context: Tensor, width: float) -> Tensor:
+    """``(..., C + K)``: the context and its Gaussian bump around each of :data:`RBF_CENTRES`."""
+    centres = RBF_CENTRES.to(dtype=context.dtype, device=context.device)
+    dist2 = ((context[..., None, :] - centres) ** 2).sum(-1)
+    return torch.cat([context, torch.exp(-dist2 / (2 * width**2))], dim=-1)
+
+
+def context_width(config: FCRBMConfig) -> int:
+    """Rows of the context factor matrices: ``C``, or ``C + K`` with ``"rbf"`` features."""
+    return config.context + (len(RBF_CENTRES) if config.context_features == "rbf" else 0)
+
+
 _AUTOREGRESSIVE = ("a_past", "a_vis", "a_ctx")
 _WEIGHTS = ("w_vis", "w_hid", "w_ctx", *_AUTOREGRESSIVE, "b_past", "b_hid", "b_ctx")
 _BIASES = ("vis_bias", "hid_bias")
@@ -136,10 +175,12 @@ class FCRBM(nn.Module):
     Attributes:
         vis_bias: ``(D,)`` static visible bias ``a``.
         hid_bias: ``(H,)`` static hidden bias ``b``.
-        w_vis, w_hid, w_ctx: ``(D, F)``, ``(H, F)``, ``(C, F)``, visible-hidden-context factors.
-        a_past, a_vis, a_ctx: ``(N*D, Fa)``, ``(D, Fa)``, ``(C, Fa)``, past-to-visible factors
+        w_vis, w_hid, w_ctx: ``(D, F)``, ``(H, F)``, ``(G, F)``, visible-hidden-context factors.
+        a_past, a_vis, a_ctx: ``(N*D, Fa)``, ``(D, Fa)``, ``(G, Fa)``, past-to-visible factors
             (absent without ``config.visible_autoregression``).
-        b_past, b_hid, b_ctx: ``(N*D, Fb)``, ``(H, Fb)``, ``(C, Fb)``, past-to-hidden factors.
+        b_past, b_hid, b_ctx: ``(N*D, Fb)``, ``(H, Fb)``, ``(G, Fb)``, past-to-hidden factors.
+
+    ``G`` is :func:`context_width`: ``C``, or ``C + K`` with ``"rbf"`` context features.
     """
 
     def __init__(self, config: FCRBMConfig) -> None:
@@ -148,16 +189,17 @@ class FCRBM(nn.Module):
         c = config
         gen = torch.Generator().manual_seed(c.seed)
         past = c.order * c.visible
+        width = context_width(c)
         shapes = {
             "w_vis": (c.visible, c.factors),
             "w_hid": (c.hidden, c.factors),
-            "w_ctx": (c.context, c.factors),
+            "w_ctx": (width, c.factors),
             "a_past": (past, c.factors_past_visible),
             "a_vis": (c.visible, c.factors_past_visible),
-            "a_ctx": (c.context, c.factors_past_visible),
+            "a_ctx": (width, c.factors_past_visible),
             "b_past": (past, c.factors_past_hidden),
             "b_hid": (c.hidden, c.factors_past_hidden),
-            "b_ctx": (c.context, c.factors_past_hidden),
+            "b_ctx": (width, c.factors_past_hidden),
         }
         self.weight_names = tuple(
             n for n in _WEIGHTS if c.visible_autoregression or n not in _AUTOREGRESSIVE
@@ -191,7 +233,37 @@ class FCRBM(nn.Module):
         z = self._tensor(context, "context", (None, c.context))
         if p.shape[0] != z.shape[0]:
             raise ValueError(f"past and context batch sizes differ: {p.shape[0]} != {z.shape[0]}")
-        return p, z
+        return p, self.features(z)
+
+    def features(self, context: Tensor) -> Tensor:
+        """``(..., G)`` gating features of a ``(..., C)`` context.
+
+        ``"linear"``: the context itself, so every factor's gate is linear in it (the paper's
+        model; the weights at any context are a blend of ``C`` fixed matrices). ``"rbf"``: the
+        context followed by ``exp(-|z - c_k|² / (2 w²))`` for each centre ``c_k`` of
+        :data:`RBF_CENTRES` (``w`` = ``config.rbf_width``), so each valence/arousal region can
+        have weights of its own. Beyond the grid (1-3) the features go on linearly from the
+        edge, along each axis by the edge's last unit step: ``φ(z) = φ(ẑ) + Σ_d |z_d - ẑ_d|
+        (φ(ẑ) - φ(ẑ - s_d e_d))`` with ``ẑ`` the context clamped to the grid and ``s_d`` the
+        side it left by. The gates are linear in ``φ``, so at arousal 3.5 the weights are
+        those at 3 plus half their change from 2 to 3: exaggeration by extrapolating the
+        difference, as the paper's linear gates do everywhere.
+        """
+        if self.config.context_features == "linear":
+            return context
+        low, high = float(RBF_CENTRES.min()), float(RBF_CENTRES.max())
+        inside = context.clamp(low, high)
+        width = self.config.rbf_width
+        edge = _grid_features(inside, width)
+        beyond = context - inside
+        phi = edge
+        for axis in range(context.shape[-1]):
+            outward = torch.sign(beyond[..., axis])
+            back = inside.clone()
+            back[..., axis] -= outward
+            step = edge - _grid_features(back, width)
+            phi = phi + (beyond[..., axis] * outward)[..., None] * step
+        return phi
 
     def _check_batch(self, x: Tensor, name: str, batch: int) -> None:
         if x.shape[0] != batch:
@@ -388,7 +460,7 @@ class FCRBM(nn.Module):
             without ``config.visible_autoregression`` the lags' blocks are zero.
         """
         c = self.config
-        z = self._tensor(context, "context", (None, c.context))
+        z = self.features(self._tensor(context, "context", (None, c.context)))
         nd = c.order * c.visible
         comp = torch.zeros(z.shape[0], nd, nd, dtype=z.dtype, device=z.device)
         comp[:, : nd - c.visible, c.visible :] = torch.eye(nd - c.visible)
@@ -479,6 +551,7 @@ class FCRBM(nn.Module):
                 raise ValueError(f"steps={steps} != {z.shape[0]} frames of context (T, B, C)")
         if z.shape[0] < 1:
             raise ValueError("generate needs at least one step")
+        z = self.features(z)
         n_gibbs = c.gibbs if gibbs is None else gibbs
         if n_gibbs < 1:
             raise ValueError(f"gibbs must be >= 1, got {n_gibbs}")
@@ -507,7 +580,8 @@ class FCRBM(nn.Module):
         return out
 
     def context_weights(self, context: Tensor) -> Tensor:
-        """``(B, D, H)`` visible-hidden weights at a context: ``W_v diag(z W_z) W_h^T``.
+        """``(B, D, H)`` visible-hidden weights at a context's gating features (``(B, G)``,
+        :meth:`features`): ``W_v diag(z W_z) W_h^T``.
 
         Generation multiplies by these instead of through the factors: ``D H`` products per
         agent and Gibbs half-step instead of ``F (D + H)`` (11 x fewer at 55 visible, 1000
@@ -516,7 +590,7 @@ class FCRBM(nn.Module):
         sizes).
 
         Args:
-            context: ``(B, C)`` context.
+            context: ``(B, G)`` gating features.
         """
         zf = context @ self.w_ctx
         return torch.einsum("df,bf,hf->bdh", self.w_vis, zf, self.w_hid)

@@ -350,7 +350,8 @@ def train_fcrbm(
         _, _, ckpt = load_fcrbm_checkpoint(last_path)
         # Settings added since a checkpoint was written take their defaults.
         saved = FCRBMTrainSettings().to_dict() | ckpt["train"]
-        if ckpt["config"] != config.to_dict() or saved != settings.to_dict() | {
+        saved_config = FCRBMConfig.from_dict(ckpt["config"]).to_dict()
+        if saved_config != config.to_dict() or saved != settings.to_dict() | {
                 "epochs": saved["epochs"]}:
             raise ConfigError(f"{last_path}: made with other settings; cannot resume")
         model.load_state_dict(ckpt["state"])
