@@ -19,6 +19,7 @@ from emotive.models.fcrbm.generate import (
 from emotive.models.fcrbm.model import FCRBMConfig
 from emotive.models.fcrbm.training import (
     EXPORTED_KEYS,
+    FCRBMTrainSettings,
     load_fcrbm_checkpoint,
     load_fcrbm_settings,
 )
@@ -33,7 +34,7 @@ def test_the_committed_checkpoint_is_the_configs_recipe_exported():
     assert set(ckpt) == set(EXPORTED_KEYS)
     saved = FCRBMConfig.from_dict(ckpt["config"]).to_dict()  # keys added since: defaults
     assert saved == {**config.to_dict(), "visible": codec.dim}
-    assert ckpt["train"] == settings.to_dict()
+    assert FCRBMTrainSettings(**ckpt["train"]).to_dict() == settings.to_dict()
     assert ckpt["epoch"] == settings.epochs
     assert path.stat().st_size < 8e6
     assert (path.parent / "MODEL_CARD.md").is_file()
@@ -76,19 +77,26 @@ def test_the_committed_codec_is_fitted_on_the_configs_data(bandai1_dir, bandai2_
 
 
 def test_the_default_model_is_read_as_the_emotion_it_is_asked_for():
-    """Sad and angry from the mean frame (6 s each): the evaluation suite's classifier reads
-    them as asked, and angry moves its joints faster (the README's evaluation measures every
+    """Happy, sad and angry from the mean frame (10 s, seeds 0 and 1): the evaluation suite's
+    classifier reads at least 70 % of the windows as asked, the last window of every run
+    right, and angry moves its joints faster than sad (the README's evaluation measures every
     emotion over 20 s and 3 seeds)."""
     from emotive.eval.classifier import load_default_classifier, window_labels
 
     model = load_fcrbm_model()
     classifier = load_default_classifier()
     speed = {}
-    for emotion in ("sad", "angry"):
-        motion, _ = generate_motion(model, constant_context(*emotion_context(emotion), 180))
-        read = window_labels(classifier.classify(motion)[1], classifier.labels)
-        assert read and all(label == emotion for label in read), (emotion, read)
-        p = motion.positions_with_end_sites()
-        relative = p - p[:, :1]
-        speed[emotion] = np.linalg.norm(np.diff(relative, axis=0), axis=-1).mean() * model.fps
-    assert speed["angry"] > 2 * speed["sad"], speed
+    for emotion in ("happy", "sad", "angry"):
+        read, speeds = [], []
+        for seed in (0, 1):
+            motion, _ = generate_motion(model, constant_context(*emotion_context(emotion), 300),
+                                        seed=seed)
+            labels = window_labels(classifier.classify(motion)[1], classifier.labels)
+            assert labels and labels[-1] == emotion, (emotion, seed, labels)
+            read += labels
+            p = motion.positions_with_end_sites()
+            relative = p - p[:, :1]
+            speeds.append(np.linalg.norm(np.diff(relative, axis=0), axis=-1).mean() * model.fps)
+        assert np.mean([label == emotion for label in read]) >= 0.7, (emotion, read)
+        speed[emotion] = np.mean(speeds)
+    assert speed["angry"] > 1.5 * speed["sad"], speed

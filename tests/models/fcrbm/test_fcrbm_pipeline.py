@@ -26,8 +26,9 @@ from emotive.models.fcrbm.generate import (
     schedule_context,
     seed_frames,
 )
-from emotive.models.fcrbm.model import FCRBMConfig
+from emotive.models.fcrbm.model import FCRBM, FCRBMConfig
 from emotive.models.fcrbm.training import (
+    MIN_CONTEXT,
     FCRBMData,
     FCRBMTrainSettings,
     export_fcrbm_checkpoint,
@@ -302,6 +303,35 @@ def test_settings_file(tmp_path):
     bad.write_text("[train]\npast_noise = -1\n")
     with pytest.raises(ConfigError, match="past_noise"):
         load_fcrbm_settings(bad)
+    bad.write_text("[train]\ncontext_noise = 1.5\n")
+    with pytest.raises(ConfigError, match="context_noise"):
+        load_fcrbm_settings(bad)
+
+
+@pytest.mark.parametrize("noise", [0.0, 0.5])
+def test_context_noise_jitters_each_training_context(tmp_path, monkeypatch, noise):
+    seen = []
+    step = FCRBM.train_step
+
+    def recording(self, v, past, context, generator=None):
+        seen.append(context.clone())
+        return step(self, v, past, context, generator)
+
+    monkeypatch.setattr(FCRBM, "train_step", recording)
+    config = FCRBMConfig(visible=1, order=3, hidden=8, factors=4, factors_past_visible=4,
+                         factors_past_hidden=4, gibbs=2, visible_autoregression=False)
+    data = synthetic_data(config.order)
+    train_fcrbm(config, FCRBMTrainSettings(epochs=1, batch_size=50, context_noise=noise),
+                progress=False, out_dir=tmp_path, data=data)
+    z = torch.cat(seen)
+    clean = {(2.0, 1.0), (2.0, 3.0)}  # the synthetic slow and fast walks
+    if not noise:
+        assert {tuple(row) for row in z.tolist()} == clean
+        return
+    valence = z[:, 0].double()
+    assert abs(float(valence.mean()) - 2.0) < 0.1
+    assert abs(float(valence.std()) - noise) < 0.05
+    assert float(z.min()) >= MIN_CONTEXT
 
 
 @pytest.fixture(scope="module")

@@ -50,6 +50,9 @@ CSV_COLUMNS = ("epoch", "train_reconstruction", "val_one_step", "ar_radius", "se
 STABLE_AXIS = (0.5, 1.25, 2.0, 2.75, 3.5)
 #: Marks a checkpoint as an FCRBM one.
 KIND = "fcrbm"
+#: Lowest valence/arousal of a training context after ``context_noise`` (kept positive: every
+#: interaction is multiplicative in the context).
+MIN_CONTEXT = 0.25
 
 
 @dataclass(frozen=True)
@@ -71,6 +74,9 @@ class FCRBMTrainSettings:
         past_noise: standard deviation (standardized units) of Gaussian noise added to the
             past frames of every training example, so that the model learns to pull
             generated frames back towards the data instead of amplifying its own errors.
+        context_noise: standard deviation (valence/arousal units) of Gaussian noise added to
+            the context of every training example (kept at 0.25 or above), so that the model
+            also learns the plane around and between its training points.
         max_ar_radius: with the past-to-visible term
             (:attr:`~emotive.models.fcrbm.model.FCRBMConfig.visible_autoregression`), after
             every epoch the autoregressive weights are scaled so that the
@@ -97,6 +103,7 @@ class FCRBMTrainSettings:
     split_seed: int = 0
     max_clips: int = 0
     past_noise: float = 0.0
+    context_noise: float = 0.0
     max_ar_radius: float = 0.999
     project_every: int = 50
 
@@ -110,6 +117,11 @@ class FCRBMTrainSettings:
                 not 0 <= self.past_noise < 10):
             raise ValueError(f"past_noise must be a number in [0, 10), got {self.past_noise!r}")
         object.__setattr__(self, "past_noise", float(self.past_noise))
+        if isinstance(self.context_noise, bool) or not isinstance(
+                self.context_noise, int | float) or not 0 <= self.context_noise < 1:
+            raise ValueError(f"context_noise must be a number in [0, 1), got "
+                             f"{self.context_noise!r}")
+        object.__setattr__(self, "context_noise", float(self.context_noise))
         for name, low in (("epochs", 1), ("batch_size", 1), ("split_seed", 0),
                           ("max_clips", 0), ("project_every", 0)):
             value = getattr(self, name)
@@ -380,7 +392,11 @@ def train_fcrbm(
             p = past[idx]
             if settings.past_noise:
                 p = p + settings.past_noise * torch.randn(p.shape, generator=gen)
-            errors.append(model.train_step(v[idx], p, ctx[idx], gen))
+            z = ctx[idx]
+            if settings.context_noise:
+                z = (z + settings.context_noise * torch.randn(z.shape, generator=gen)).clamp_min(
+                    MIN_CONTEXT)
+            errors.append(model.train_step(v[idx], p, z, gen))
             if settings.project_every and (k + 1) % settings.project_every == 0:
                 model.limit_ar_radius(corners, settings.max_ar_radius)
             batch_done(f"reconstruction {np.mean(errors):.4g}")
