@@ -34,6 +34,7 @@ import torch
 from emotive.errors import DataError
 from emotive.models.epochs import EpochOutcome, TrainingLog, resumed_log, run_epochs
 from emotive.models.fcrbm.data import FrameCodec, clip_context, frame_vectors
+from emotive.models.fcrbm.generate import CONTEXT_RANGE
 from emotive.models.fcrbm.model import FCRBM, FCRBMConfig, sliding_windows
 from emotive.models.gait.training import (
     ConfigError,
@@ -50,9 +51,9 @@ CSV_COLUMNS = ("epoch", "train_reconstruction", "val_one_step", "ar_radius", "se
 STABLE_AXIS = (0.5, 1.25, 2.0, 2.75, 3.5)
 #: Marks a checkpoint as an FCRBM one.
 KIND = "fcrbm"
-#: Lowest valence/arousal of a training context after ``context_noise`` (kept positive: every
-#: interaction is multiplicative in the context).
-MIN_CONTEXT = 0.25
+#: Lowest valence/arousal of a training context after ``context_noise``: the lowest the
+#: generator accepts (kept positive: every interaction is multiplicative in the context).
+MIN_CONTEXT = CONTEXT_RANGE[0]
 
 
 @dataclass(frozen=True)
@@ -75,8 +76,8 @@ class FCRBMTrainSettings:
             past frames of every training example, so that the model learns to pull
             generated frames back towards the data instead of amplifying its own errors.
         context_noise: standard deviation (valence/arousal units) of Gaussian noise added to
-            the context of every training example (kept at 0.25 or above), so that the model
-            also learns the plane around and between its training points.
+            the context of every training example (kept at :data:`MIN_CONTEXT` or above), so
+            that the model also learns the plane around and between its training points.
         max_ar_radius: with the past-to-visible term
             (:attr:`~emotive.models.fcrbm.model.FCRBMConfig.visible_autoregression`), after
             every epoch the autoregressive weights are scaled so that the
