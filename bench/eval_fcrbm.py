@@ -5,12 +5,14 @@ Usage: ``python bench/eval_fcrbm.py [--checkpoint PATH] [--seeds 3] [--seconds 2
 references (``EMOTIVE_DATA`` or ``../shared/data``).
 
 * **control**: root speed, joint speed (relative to the root) and step frequency of motion
-  generated along each axis (arousal 1, 1.5, ..., 3.5 at valence 2; valence likewise at
-  arousal 2), ``--seeds`` samples of ``--seconds`` each, with whether each measure rises
-  monotonically over 1, 2, 3, 3.5, with the root path rebuilt from the stance foot (the
-  generator's default, ``root="feet"``) and with the model's own root velocity
-  (``root="model"``, the same generated frames); beside them the same measures on the real
-  walks of the data sets grouped by their arousal or valence (the training data's own trend).
+  generated along each axis (arousal 1, 1.5, ..., 3.5 at valence 2; valence likewise at arousal
+  2), ``--seeds`` samples of ``--seconds`` each, with whether each measure rises monotonically
+  over 1, 2, 3, 3.5 and whether every run at those four values is *walking* (as in the walking
+  screen below: a rise that starts from a still pose is not control), with the root path
+  rebuilt from the stance foot (the generator's default, ``root="feet"``) and with the model's
+  own root velocity (``root="model"``, the same generated frames); beside them the same
+  measures on the real walks of the data sets grouped by their arousal or valence (the training
+  data's own trend).
 * **emotion**: motion generated at the valence/arousal of happy, sad, angry and neutral, judged
   by the evaluation suite's classifier (its emotion suite): window accuracy against the
   classifier's accuracy on real held-out walks (with either root path); the classifier's
@@ -28,7 +30,8 @@ references (``EMOTIVE_DATA`` or ``../shared/data``).
   agents at 30 fps is 600 frames per second).
 * **walking** (``--part walking``, the screen used while the model still freezes): from the
   mean frame, 7 emotions x ``--seeds`` runs of 15 s, a run *walking* when its joint speed is
-  above 0.25 m/s and it makes more than 0.8 steps/s (root from the stance foot); and from a
+  above 0.25 m/s and it makes more than 0.8 steps/s (root from the stance foot; a gait whose
+  feet slide and never plant makes almost no steps); and from a
   real clip, frames 30-32 of the first training clip of each style the checkpoint was trained
   on, 600 frames at that style's valence/arousal, the style *sustained* when the mean
   frame-to-frame change of frames 300-599 is more than half the clip's own.
@@ -53,6 +56,9 @@ from common import machine_info, write_record  # noqa: E402
 EMOTIONS = ("happy", "sad", "angry", "neutral")
 AXIS_VALUES = (1.0, 1.5, 2.0, 2.5, 3.0, 3.5)
 MONOTONIC_AT = (1.0, 2.0, 3.0, 3.5)
+#: A run is walking when its joint speed (m/s) and step frequency (1/s) are above these.
+WALKING_JOINT_SPEED = 0.25
+WALKING_STEPS = 0.8
 
 
 def measures(motion) -> dict[str, float]:
@@ -69,6 +75,13 @@ def measures(motion) -> dict[str, float]:
     strikes = foot_strikes(foot_contacts(p, roles, motion.fps)).sum()
     return {"root_speed": float(ground.mean()), "joint_speed": float(joints.mean()),
             "step_frequency": float(strikes / motion.duration)}
+
+
+def is_walking(measured: dict[str, float]) -> bool:
+    """Whether :func:`measures` of a run show walking (:data:`WALKING_JOINT_SPEED`,
+    :data:`WALKING_STEPS`)."""
+    return bool(measured["joint_speed"] > WALKING_JOINT_SPEED
+                and measured["step_frequency"] > WALKING_STEPS)
 
 
 def real_trend() -> dict:
@@ -113,16 +126,21 @@ def control(model, seeds: int, seconds: float) -> dict:
                 samples = [measures(decode_frames(model, run, root=root)) for run in runs]
                 rows[root][str(value)] = {m: float(np.mean([r[m] for r in samples]))
                                           for m in samples[0]}
+                rows[root][str(value)]["walking_share"] = float(np.mean(
+                    [is_walking(r) for r in samples]))
         out[axis] = {}
         for root, table in rows.items():
             monotonic = {m: bool(all(table[str(b)][m] > table[str(a)][m]
                                      for a, b in itertools.pairwise(MONOTONIC_AT)))
-                         for m in table[str(AXIS_VALUES[0])]}
-            out[axis][root] = {"values": table, "monotonic_1_2_3_3.5": monotonic}
+                         for m in ("root_speed", "joint_speed", "step_frequency")}
+            walking = all(table[str(v)]["walking_share"] == 1.0 for v in MONOTONIC_AT)
+            out[axis][root] = {"values": table, "monotonic_1_2_3_3.5": monotonic,
+                               "walking_at_1_2_3_3.5": walking}
             print(f"{axis} (root {root}): " + "; ".join(
                 f"{v}: root {r['root_speed']:.2f} joints {r['joint_speed']:.2f} steps "
-                f"{r['step_frequency']:.2f}" for v, r in table.items())
-                + f"  monotonic {monotonic}")
+                f"{r['step_frequency']:.2f} walking {r['walking_share']:.0%}"
+                for v, r in table.items())
+                + f"  monotonic {monotonic}, every run walking at 1, 2, 3, 3.5: {walking}")
     return out
 
 
@@ -355,7 +373,7 @@ def walking(model, checkpoint: Path | None, seeds: int) -> dict:
     mean_frame: dict[str, int] = dict.fromkeys(WALK_EMOTIONS, 0)
     for emotion, run in zip(runs, frames, strict=True):
         r = measures(decode_frames(model, run))
-        mean_frame[emotion] += r["joint_speed"] > 0.25 and r["step_frequency"] > 0.8
+        mean_frame[emotion] += is_walking(r)
     print(f"walking from the mean frame: {sum(mean_frame.values())} of {len(runs)} runs "
           f"{mean_frame}")
 
