@@ -31,10 +31,10 @@ references (``EMOTIVE_DATA`` or ``../shared/data``).
 * **walking** (``--part walking``, the screen used while the model still freezes): from the
   mean frame, 7 emotions x ``--seeds`` runs of 15 s, a run *walking* when its joint speed is
   above 0.25 m/s and it makes more than 0.8 steps/s (root from the stance foot; a gait whose
-  feet slide and never plant makes almost no steps); and from a
-  real clip, frames 30-32 of the first training clip of each style the checkpoint was trained
-  on, 600 frames at that style's valence/arousal, the style *sustained* when the mean
-  frame-to-frame change of frames 300-599 is more than half the clip's own.
+  feet slide and never plant makes almost no steps); and from a real clip, frames 30-32 of the
+  first training clip of each style the checkpoint was trained on, 600 frames at that style's
+  valence/arousal, the style *sustained* when the mean frame-to-frame change of frames 300-599
+  is more than half the clip's own.
 """
 
 from __future__ import annotations
