@@ -13,7 +13,7 @@ from cli_helpers import assert_failed_cleanly
 from emotive.core import Motion, Skeleton
 from emotive.core.ops import canonicalize_facing
 from emotive.errors import DataError, EmotionError, RigError
-from emotive.models.fcrbm.data import FrameCodec, clip_context, frame_vectors
+from emotive.models.fcrbm.data import FrameCodec, clip_context, frame_vectors, movement_energy
 from emotive.models.fcrbm.generate import (
     FCRBMDivergedError,
     FCRBMInputError,
@@ -28,9 +28,12 @@ from emotive.models.fcrbm.generate import (
 )
 from emotive.models.fcrbm.model import FCRBM, FCRBMConfig
 from emotive.models.fcrbm.training import (
+    ENERGY_CLIP,
+    ENERGY_SPREAD,
     MIN_CONTEXT,
     FCRBMData,
     FCRBMTrainSettings,
+    edge_energy_contexts,
     export_fcrbm_checkpoint,
     load_fcrbm_checkpoint,
     load_fcrbm_settings,
@@ -306,10 +309,18 @@ def test_settings_file(tmp_path):
     bad.write_text("[train]\ncontext_noise = 1.5\n")
     with pytest.raises(ConfigError, match="context_noise"):
         load_fcrbm_settings(bad)
+    bad.write_text("[train]\nedge_energy = -0.1\n")
+    with pytest.raises(ConfigError, match="edge_energy"):
+        load_fcrbm_settings(bad)
 
 
-@pytest.mark.parametrize("noise", [0.0, 0.5])
-def test_context_noise_jitters_each_training_context(tmp_path, monkeypatch, noise):
+#: A tiny model for tests of what training feeds it.
+TINY = FCRBMConfig(visible=1, order=3, hidden=8, factors=4, factors_past_visible=4,
+                   factors_past_hidden=4, gibbs=2, visible_autoregression=False)
+
+
+def training_contexts(monkeypatch) -> list[torch.Tensor]:
+    """The list that every later ``train_step`` appends its ``(B, 2)`` context to."""
     seen = []
     step = FCRBM.train_step
 
@@ -318,8 +329,12 @@ def test_context_noise_jitters_each_training_context(tmp_path, monkeypatch, nois
         return step(self, v, past, context, generator)
 
     monkeypatch.setattr(FCRBM, "train_step", recording)
-    config = FCRBMConfig(visible=1, order=3, hidden=8, factors=4, factors_past_visible=4,
-                         factors_past_hidden=4, gibbs=2, visible_autoregression=False)
+    return seen
+
+
+@pytest.mark.parametrize("noise", [0.0, 0.5])
+def test_context_noise_jitters_each_training_context(tmp_path, monkeypatch, noise):
+    config, seen = TINY, training_contexts(monkeypatch)
     data = synthetic_data(config.order)
     train_fcrbm(config, FCRBMTrainSettings(epochs=1, batch_size=50, context_noise=noise),
                 progress=False, out_dir=tmp_path, data=data)
@@ -332,6 +347,76 @@ def test_context_noise_jitters_each_training_context(tmp_path, monkeypatch, nois
     assert abs(float(valence.mean()) - 2.0) < 0.1
     assert abs(float(valence.std()) - noise) < 0.05
     assert float(z.min()) >= MIN_CONTEXT
+
+
+def test_movement_energy_measures_root_and_joint_speed():
+    slow, fast = walk(120, speed=0.5, turn=0.0, swing=0.15), walk(120, speed=1.5, turn=0.0)
+    frames = [frame_vectors(slow), frame_vectors(fast)]
+    codec = FrameCodec.fit(frames, [slow, fast])
+    root_slow, joints_slow = movement_energy(codec.encode(frames[0]), codec)
+    root_fast, joints_fast = movement_energy(codec.encode(frames[1]), codec)
+    assert root_slow.shape == joints_slow.shape == (120,)
+    np.testing.assert_allclose(root_slow * FPS, 0.5, rtol=1e-3)  # metres per frame
+    np.testing.assert_allclose(root_fast * FPS, 1.5, rtol=1e-3)
+    assert joints_fast.mean() > 2 * joints_slow.mean()
+
+
+def energetic_data(order: int) -> FCRBMData:
+    """Clips of a low-edge, a middle and a high-edge style whose second half moves faster."""
+    def clip(arousal):
+        first, second = walk(90, speed=0.8, swing=0.2), walk(90, speed=1.6, swing=0.4)
+        return frame_vectors(first), frame_vectors(second), arousal
+
+    parts = {"tired": clip(1.0), "neutral": clip(2.0), "angry": clip(3.0)}
+    codec = FrameCodec.fit([f for a, b, _ in parts.values() for f in (a, b)],
+                           [walk(90, speed=0.8, swing=0.2), walk(90, speed=1.6, swing=0.4)] * 3)
+    items = [(k, codec.encode(np.concatenate((a, b))), np.tile([2.0, z], (180, 1)))
+             for k, (a, b, z) in parts.items()]
+    return FCRBMData(codec, {"train": items, "val": items[2:]})
+
+
+def test_edge_energy_moves_only_the_edge_styles_outwards_by_how_much_they_move():
+    data = energetic_data(3)
+    moved = edge_energy_contexts(data, 0.25)
+    for (name, frames, base), (name2, frames2, shifted) in zip(
+            data.splits["train"], moved.splits["train"], strict=True):
+        assert name == name2 and frames2 is frames
+        np.testing.assert_array_equal(shifted[:, 0], base[:, 0])  # valence untouched
+        change = shifted[:, 1] - base[:, 1]
+        assert np.abs(change).max() <= 0.25 * ENERGY_CLIP + 1e-12
+        if name == "neutral":
+            assert not change.any()
+        elif name == "angry":  # the faster half is labelled more aroused, the slower kept
+            assert (change >= 0).all() and change[120:].min() > 0.1 and not change[:60].any()
+        else:  # tired: the slower half is labelled less aroused, the faster kept
+            assert (change <= 0).all() and change[:60].max() < -0.1 and not change[120:].any()
+    # the energy score is the mean of the two z-scores over ENERGY_SPREAD
+    root, joints = movement_energy(data.splits["train"][2][1], data.codec)
+    score = ((root - root.mean()) / root.std() + (joints - joints.mean()) / joints.std()) / 2
+    expected = 0.25 * np.clip(score / ENERGY_SPREAD, -ENERGY_CLIP, ENERGY_CLIP).clip(0)
+    np.testing.assert_allclose(moved.splits["train"][2][2][:, 1] - 3.0, expected)
+    np.testing.assert_array_equal(moved.splits["val"][0][2], moved.splits["train"][2][2])
+    lonely = FCRBMData(data.codec, {"train": data.splits["train"][:1],
+                                    "val": data.splits["train"][2:]})
+    with pytest.raises(DataError, match="no training clip"):
+        edge_energy_contexts(lonely, 0.25)
+
+
+def test_training_with_edge_energy_sees_the_moved_arousal_and_balances_by_style(
+        tmp_path, monkeypatch):
+    config, seen = TINY, training_contexts(monkeypatch)
+    data = energetic_data(config.order)
+    name, frames, context = data.splits["train"][1]
+    data.splits["train"][1] = (name, frames[:90], context[:90])  # neutral: half as long
+    settings = FCRBMTrainSettings(epochs=1, batch_size=60, edge_energy=0.25,
+                                  balance_contexts=True)
+    train_fcrbm(config, settings, progress=False, out_dir=tmp_path, data=data)
+    z = torch.cat(seen).double()
+    # balanced by style, not by the moved values: the neutral examples twice, the others once
+    assert len(z) == 2 * (180 - config.order) + 2 * (90 - config.order)
+    assert float(z[:, 1].max()) > 3.1 and float(z[:, 1].min()) < 0.9
+    middle = z[(z[:, 1] > 1.5) & (z[:, 1] < 2.5), 1]
+    assert len(middle) == 2 * (90 - config.order) and (middle == 2.0).all()
 
 
 @pytest.fixture(scope="module")

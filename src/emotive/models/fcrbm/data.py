@@ -152,6 +152,36 @@ def clip_context(style: str, frames: int) -> np.ndarray:
     return np.repeat((2.0 + point)[None], frames, axis=0)
 
 
+def movement_energy(visible: np.ndarray, codec: FrameCodec) -> tuple[np.ndarray, np.ndarray]:
+    """How much a clip moves around each frame: its root speed and joint rotation speed.
+
+    Args:
+        visible: ``(T, D)`` encoded frames of one clip (:meth:`FrameCodec.encode`).
+        codec: their codec.
+
+    Returns:
+        ``(T,)`` ground step of the root (metres per frame) and ``(T,)`` norm of the change of
+        the standardized joint dimensions since the previous frame (the first frame repeats
+        the second), each averaged over a centred window of about a second (edges repeated).
+    """
+    from scipy.ndimage import uniform_filter1d
+
+    def column(k: int) -> np.ndarray:
+        """Column ``k`` of the ``K`` in its own units (a left-out one is constant)."""
+        at = np.flatnonzero(codec.keep == k)
+        if not len(at):
+            return np.full(len(visible), codec.constant[k])
+        return visible[:, at[0]] * codec.std[at[0]] + codec.mean[at[0]]
+
+    step = np.hypot(column(0), column(1))
+    joints = visible[:, int(np.searchsorted(codec.keep, ROOT_COLUMNS)):]
+    change = np.linalg.norm(np.diff(joints, axis=0), axis=1)
+    change = np.concatenate((change[:1], change)) if len(change) else np.zeros(len(visible))
+    window = round(codec.fps) | 1
+    return (uniform_filter1d(step, window, mode="nearest"),
+            uniform_filter1d(change, window, mode="nearest"))
+
+
 @dataclass(frozen=True, eq=False)
 class FrameCodec:
     """Standardization of frames and the way back to motion.

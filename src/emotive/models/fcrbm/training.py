@@ -54,6 +54,15 @@ KIND = "fcrbm"
 #: Lowest valence/arousal of a training context after ``context_noise``: the lowest the
 #: generator accepts (kept positive: every interaction is multiplicative in the context).
 MIN_CONTEXT = CONTEXT_RANGE[0]
+#: Styles whose arousal is at or below the first value or at or above the second are at the
+#: edge of the arousal scale (``edge_energy``): tired and exhausted, angry and active.
+EDGE_AROUSAL = (1.25, 2.75)
+#: Standard deviation of the mean of a frame's two energy z-scores (root and joint speed
+#: within its style) on the default data (0.82; the two correlate at about 0.35): dividing by
+#: it gives the energy score about unit spread.
+ENERGY_SPREAD = 0.85
+#: The energy score is clipped to this many units either way.
+ENERGY_CLIP = 2.0
 
 
 @dataclass(frozen=True)
@@ -78,6 +87,12 @@ class FCRBMTrainSettings:
         context_noise: standard deviation (valence/arousal units) of Gaussian noise added to
             the context of every training example (kept at :data:`MIN_CONTEXT` or above), so
             that the model also learns the plane around and between its training points.
+        edge_energy: arousal offset (valence/arousal units) per unit of a frame's energy
+            score, for the styles at the edge of the arousal scale (:data:`EDGE_AROUSAL`)
+            only (:func:`edge_energy_contexts`): their frames that move more than the style's
+            average (less, at the low edge) are labelled further out, so that arousal beyond
+            the 1-3 scale (exaggeration) has data that move more (less) than the edge styles.
+            0: every frame has its style's arousal.
         max_ar_radius: with the past-to-visible term
             (:attr:`~emotive.models.fcrbm.model.FCRBMConfig.visible_autoregression`), after
             every epoch the autoregressive weights are scaled so that the
@@ -105,6 +120,7 @@ class FCRBMTrainSettings:
     max_clips: int = 0
     past_noise: float = 0.0
     context_noise: float = 0.0
+    edge_energy: float = 0.0
     max_ar_radius: float = 0.999
     project_every: int = 50
 
@@ -123,6 +139,10 @@ class FCRBMTrainSettings:
             raise ValueError(f"context_noise must be a number in [0, 1), got "
                              f"{self.context_noise!r}")
         object.__setattr__(self, "context_noise", float(self.context_noise))
+        if isinstance(self.edge_energy, bool) or not isinstance(
+                self.edge_energy, int | float) or not 0 <= self.edge_energy <= 1:
+            raise ValueError(f"edge_energy must be a number in [0, 1], got {self.edge_energy!r}")
+        object.__setattr__(self, "edge_energy", float(self.edge_energy))
         for name, low in (("epochs", 1), ("batch_size", 1), ("split_seed", 0),
                           ("max_clips", 0), ("project_every", 0)):
             value = getattr(self, name)
@@ -216,6 +236,65 @@ def load_fcrbm_data(settings: FCRBMTrainSettings, progress: bool = False) -> FCR
     codec = FrameCodec.fit([f for _, f, _, _ in raw["train"]], [m for *_, m in raw["train"]])
     return FCRBMData(codec, {s: [(n, codec.encode(f), c) for n, f, c, _ in items]
                              for s, items in raw.items()})
+
+
+def _z_score(values: np.ndarray, mean: float, std: float) -> np.ndarray:
+    """``(values - mean) / std``; 0 where the style does not vary (``std`` 0)."""
+    return (values - mean) / std if std > 0 else np.zeros_like(values)
+
+
+def edge_energy_contexts(data: FCRBMData, offset: float) -> FCRBMData:
+    """The data with the arousal of the edge styles' frames moved out by how much they move.
+
+    Each frame's energy score is the mean of the z-scores of its root speed and joint speed
+    (:func:`~emotive.models.fcrbm.data.movement_energy`) among the training frames of its
+    style (its valence/arousal point), divided by :data:`ENERGY_SPREAD` and clipped to
+    ``±`` :data:`ENERGY_CLIP`. A style with arousal at or above ``EDGE_AROUSAL[1]`` adds
+    ``offset`` times the positive part of the score to its frames' arousal; one at or below
+    ``EDGE_AROUSAL[0]`` adds ``offset`` times the negative part; the others keep theirs.
+
+    Args:
+        data: encoded clips with one valence/arousal point per clip.
+        offset: arousal units per unit of the score.
+
+    Raises:
+        DataError: a clip's style has no training clip.
+    """
+    from emotive.models.fcrbm.data import movement_energy
+
+    def style(context: np.ndarray) -> tuple[float, ...]:
+        return tuple(np.round(context[0], 4))
+
+    pooled: dict[tuple[float, ...], list[tuple[np.ndarray, np.ndarray]]] = {}
+    for _, frames, context in data.splits["train"]:
+        pooled.setdefault(style(context), []).append(movement_energy(frames, data.codec))
+    stats = {}
+    for key, parts in pooled.items():
+        root, joints = (np.concatenate([p[k] for p in parts]) for k in (0, 1))
+        stats[key] = (root.mean(), root.std(), joints.mean(), joints.std())
+    low, high = EDGE_AROUSAL
+    splits = {}
+    for split, items in data.splits.items():
+        moved = []
+        for name, frames, context in items:
+            if style(context) not in stats:
+                raise DataError(f"{name}: its valence/arousal point {style(context)} has no "
+                                f"training clip; change split_seed or the styles")
+            arousal = context[0, 1]
+            if low < arousal < high:
+                moved.append((name, frames, context))
+                continue
+            root_mean, root_std, joint_mean, joint_std = stats[style(context)]
+            root, joints = movement_energy(frames, data.codec)
+            score = (_z_score(root, root_mean, root_std)
+                     + _z_score(joints, joint_mean, joint_std)) / 2
+            score = np.clip(score / ENERGY_SPREAD, -ENERGY_CLIP, ENERGY_CLIP)
+            score = np.maximum(score, 0) if arousal >= high else np.minimum(score, 0)
+            shifted = context.copy()
+            shifted[:, 1] = context[:, 1] + offset * score
+            moved.append((name, frames, shifted))
+        splits[split] = moved
+    return FCRBMData(data.codec, splits)
 
 
 def epoch_examples(context: np.ndarray, balance: bool) -> np.ndarray:
@@ -382,6 +461,10 @@ def train_fcrbm(
         }
 
     pool = epoch_examples(ctx.numpy(), settings.balance_contexts)
+    if settings.edge_energy:
+        moved = edge_energy_contexts(data, settings.edge_energy)
+        ctx = moved.examples("train", config.order)[2]
+        val = moved.examples("val", config.order)
     n_batches = math.ceil(len(pool) / settings.batch_size)
     corners = stable_corners()
 
