@@ -312,6 +312,9 @@ def test_settings_file(tmp_path):
     bad.write_text("[train]\nedge_energy = -0.1\n")
     with pytest.raises(ConfigError, match="edge_energy"):
         load_fcrbm_settings(bad)
+    bad.write_text("[train]\nlow_arousal_weight = 0\n")
+    with pytest.raises(ConfigError, match="low_arousal_weight"):
+        load_fcrbm_settings(bad)
 
 
 #: A tiny model for tests of what training feeds it.
@@ -375,7 +378,7 @@ def energetic_data(order: int) -> FCRBMData:
     return FCRBMData(codec, {"train": items, "val": items[2:]})
 
 
-def test_edge_energy_moves_only_the_edge_styles_outwards_by_how_much_they_move():
+def test_edge_energy_raises_only_the_high_edge_style_by_how_much_it_moves():
     data = energetic_data(3)
     moved = edge_energy_contexts(data, 0.25)
     for (name, frames, base), (name2, frames2, shifted) in zip(
@@ -384,12 +387,10 @@ def test_edge_energy_moves_only_the_edge_styles_outwards_by_how_much_they_move()
         np.testing.assert_array_equal(shifted[:, 0], base[:, 0])  # valence untouched
         change = shifted[:, 1] - base[:, 1]
         assert np.abs(change).max() <= 0.25 * ENERGY_CLIP + 1e-12
-        if name == "neutral":
-            assert not change.any()
-        elif name == "angry":  # the faster half is labelled more aroused, the slower kept
+        if name == "angry":  # the faster half is labelled more aroused, the slower kept
             assert (change >= 0).all() and change[120:].min() > 0.1 and not change[:60].any()
-        else:  # tired: the slower half is labelled less aroused, the faster kept
-            assert (change <= 0).all() and change[:60].max() < -0.1 and not change[120:].any()
+        else:  # neutral, and tired at the low edge
+            assert not change.any()
     # the energy score is the mean of the two z-scores over ENERGY_SPREAD
     root, joints = movement_energy(data.splits["train"][2][1], data.codec)
     score = ((root - root.mean()) / root.std() + (joints - joints.mean()) / joints.std()) / 2
@@ -414,9 +415,21 @@ def test_training_with_edge_energy_sees_the_moved_arousal_and_balances_by_style(
     z = torch.cat(seen).double()
     # balanced by style, not by the moved values: the neutral examples twice, the others once
     assert len(z) == 2 * (180 - config.order) + 2 * (90 - config.order)
-    assert float(z[:, 1].max()) > 3.1 and float(z[:, 1].min()) < 0.9
+    assert float(z[:, 1].max()) > 3.1 and float(z[:, 1].min()) == 1.0
     middle = z[(z[:, 1] > 1.5) & (z[:, 1] < 2.5), 1]
     assert len(middle) == 2 * (90 - config.order) and (middle == 2.0).all()
+
+
+@pytest.mark.parametrize("weight", [1, 3])
+def test_low_arousal_weight_repeats_the_low_edge_styles(tmp_path, monkeypatch, weight):
+    config, seen = TINY, training_contexts(monkeypatch)
+    settings = FCRBMTrainSettings(epochs=1, batch_size=60, low_arousal_weight=weight)
+    train_fcrbm(config, settings, progress=False, out_dir=tmp_path,
+                data=energetic_data(config.order))
+    arousal = torch.cat(seen)[:, 1]
+    per_style = 180 - config.order
+    assert int((arousal == 1.0).sum()) == weight * per_style
+    assert int((arousal == 2.0).sum()) == int((arousal == 3.0).sum()) == per_style
 
 
 @pytest.fixture(scope="module")

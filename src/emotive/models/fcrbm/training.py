@@ -54,8 +54,9 @@ KIND = "fcrbm"
 #: Lowest valence/arousal of a training context after ``context_noise``: the lowest the
 #: generator accepts (kept positive: every interaction is multiplicative in the context).
 MIN_CONTEXT = CONTEXT_RANGE[0]
-#: Styles whose arousal is at or below the first value or at or above the second are at the
-#: edge of the arousal scale (``edge_energy``): tired and exhausted, angry and active.
+#: Styles whose arousal is at or below the first value are at the low edge of the arousal scale
+#: (``low_arousal_weight``: tired, exhausted), those at or above the second at the high edge
+#: (``edge_energy``: angry, active).
 EDGE_AROUSAL = (1.25, 2.75)
 #: Standard deviation of the mean of a frame's two energy z-scores (root and joint speed
 #: within its style) on the default data (0.82; the two correlate at about 0.35): dividing by
@@ -88,11 +89,14 @@ class FCRBMTrainSettings:
             the context of every training example (kept at :data:`MIN_CONTEXT` or above), so
             that the model also learns the plane around and between its training points.
         edge_energy: arousal offset (valence/arousal units) per unit of a frame's energy
-            score, for the styles at the edge of the arousal scale (:data:`EDGE_AROUSAL`)
-            only (:func:`edge_energy_contexts`): their frames that move more than the style's
-            average (less, at the low edge) are labelled further out, so that arousal beyond
-            the 1-3 scale (exaggeration) has data that move more (less) than the edge styles.
+            score, for the styles at the high edge of the arousal scale
+            (:data:`EDGE_AROUSAL`) only (:func:`edge_energy_contexts`): their frames that move
+            more than the style's average are labelled above its arousal, so that arousal
+            beyond the 1-3 scale (exaggeration) has data that move more than the edge styles.
             0: every frame has its style's arousal.
+        low_arousal_weight: the examples of the styles at the low edge of the arousal scale
+            (:data:`EDGE_AROUSAL`) appear this many times in each epoch (after
+            ``balance_contexts``); 1: as often as the others.
         max_ar_radius: with the past-to-visible term
             (:attr:`~emotive.models.fcrbm.model.FCRBMConfig.visible_autoregression`), after
             every epoch the autoregressive weights are scaled so that the
@@ -121,6 +125,7 @@ class FCRBMTrainSettings:
     past_noise: float = 0.0
     context_noise: float = 0.0
     edge_energy: float = 0.0
+    low_arousal_weight: int = 1
     max_ar_radius: float = 0.999
     project_every: int = 50
 
@@ -144,7 +149,7 @@ class FCRBMTrainSettings:
             raise ValueError(f"edge_energy must be a number in [0, 1], got {self.edge_energy!r}")
         object.__setattr__(self, "edge_energy", float(self.edge_energy))
         for name, low in (("epochs", 1), ("batch_size", 1), ("split_seed", 0),
-                          ("max_clips", 0), ("project_every", 0)):
+                          ("max_clips", 0), ("project_every", 0), ("low_arousal_weight", 1)):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < low:
                 raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
@@ -244,14 +249,14 @@ def _z_score(values: np.ndarray, mean: float, std: float) -> np.ndarray:
 
 
 def edge_energy_contexts(data: FCRBMData, offset: float) -> FCRBMData:
-    """The data with the arousal of the edge styles' frames moved out by how much they move.
+    """The data with the arousal of the high-edge styles' frames raised by how much they move.
 
     Each frame's energy score is the mean of the z-scores of its root speed and joint speed
     (:func:`~emotive.models.fcrbm.data.movement_energy`) among the training frames of its
     style (its valence/arousal point), divided by :data:`ENERGY_SPREAD` and clipped to
     ``±`` :data:`ENERGY_CLIP`. A style with arousal at or above ``EDGE_AROUSAL[1]`` adds
-    ``offset`` times the positive part of the score to its frames' arousal; one at or below
-    ``EDGE_AROUSAL[0]`` adds ``offset`` times the negative part; the others keep theirs.
+    ``offset`` times the positive part of the score to its frames' arousal; the others keep
+    theirs.
 
     Args:
         data: encoded clips with one valence/arousal point per clip.
@@ -272,7 +277,7 @@ def edge_energy_contexts(data: FCRBMData, offset: float) -> FCRBMData:
     for key, parts in pooled.items():
         root, joints = (np.concatenate([p[k] for p in parts]) for k in (0, 1))
         stats[key] = (root.mean(), root.std(), joints.mean(), joints.std())
-    low, high = EDGE_AROUSAL
+    high = EDGE_AROUSAL[1]
     splits = {}
     for split, items in data.splits.items():
         moved = []
@@ -281,7 +286,7 @@ def edge_energy_contexts(data: FCRBMData, offset: float) -> FCRBMData:
                 raise DataError(f"{name}: its valence/arousal point {style(context)} has no "
                                 f"training clip; change split_seed or the styles")
             arousal = context[0, 1]
-            if low < arousal < high:
+            if arousal < high:
                 moved.append((name, frames, context))
                 continue
             root_mean, root_std, joint_mean, joint_std = stats[style(context)]
@@ -289,7 +294,7 @@ def edge_energy_contexts(data: FCRBMData, offset: float) -> FCRBMData:
             score = (_z_score(root, root_mean, root_std)
                      + _z_score(joints, joint_mean, joint_std)) / 2
             score = np.clip(score / ENERGY_SPREAD, -ENERGY_CLIP, ENERGY_CLIP)
-            score = np.maximum(score, 0) if arousal >= high else np.minimum(score, 0)
+            score = np.maximum(score, 0)
             shifted = context.copy()
             shifted[:, 1] = context[:, 1] + offset * score
             moved.append((name, frames, shifted))
@@ -461,6 +466,9 @@ def train_fcrbm(
         }
 
     pool = epoch_examples(ctx.numpy(), settings.balance_contexts)
+    if settings.low_arousal_weight > 1:
+        low = ctx.numpy()[pool, 1] <= EDGE_AROUSAL[0]
+        pool = np.sort(np.concatenate([pool] + [pool[low]] * (settings.low_arousal_weight - 1)))
     if settings.edge_energy:
         moved = edge_energy_contexts(data, settings.edge_energy)
         ctx = moved.examples("train", config.order)[2]
