@@ -300,21 +300,14 @@ def test_settings_file(tmp_path):
     assert not config.visible_autoregression
     assert settings.contents == ("walk",)
     bad = tmp_path / "bad.toml"
-    bad.write_text("[model]\nvisible = 5\n")
-    with pytest.raises(ConfigError, match="set from the data"):
-        load_fcrbm_settings(bad)
-    bad.write_text("[train]\npast_noise = -1\n")
-    with pytest.raises(ConfigError, match="past_noise"):
-        load_fcrbm_settings(bad)
-    bad.write_text("[train]\ncontext_noise = 1.5\n")
-    with pytest.raises(ConfigError, match="context_noise"):
-        load_fcrbm_settings(bad)
-    bad.write_text("[train]\nedge_energy = -0.1\n")
-    with pytest.raises(ConfigError, match="edge_energy"):
-        load_fcrbm_settings(bad)
-    bad.write_text("[train]\nlow_arousal_weight = 0\n")
-    with pytest.raises(ConfigError, match="low_arousal_weight"):
-        load_fcrbm_settings(bad)
+    for text, words in (("[model]\nvisible = 5", "set from the data"),
+                        ("[train]\npast_noise = -1", "past_noise"),
+                        ("[train]\ncontext_noise = 1.5", "context_noise"),
+                        ("[train]\nedge_energy = -0.1", "edge_energy"),
+                        ("[train]\nlow_arousal_weight = 0", "low_arousal_weight")):
+        bad.write_text(text + "\n")
+        with pytest.raises(ConfigError, match=words):
+            load_fcrbm_settings(bad)
 
 
 #: A tiny model for tests of what training feeds it.
@@ -364,7 +357,7 @@ def test_movement_energy_measures_root_and_joint_speed():
     assert joints_fast.mean() > 2 * joints_slow.mean()
 
 
-def energetic_data(order: int) -> FCRBMData:
+def energetic_data() -> FCRBMData:
     """Clips of a low-edge, a middle and a high-edge style whose second half moves faster."""
     def clip(arousal):
         first, second = walk(90, speed=0.8, swing=0.2), walk(90, speed=1.6, swing=0.4)
@@ -379,7 +372,7 @@ def energetic_data(order: int) -> FCRBMData:
 
 
 def test_edge_energy_raises_only_the_high_edge_style_by_how_much_it_moves():
-    data = energetic_data(3)
+    data = energetic_data()
     moved = edge_energy_contexts(data, 0.25)
     for (name, frames, base), (name2, frames2, shifted) in zip(
             data.splits["train"], moved.splits["train"], strict=True):
@@ -406,7 +399,7 @@ def test_edge_energy_raises_only_the_high_edge_style_by_how_much_it_moves():
 def test_training_with_edge_energy_sees_the_moved_arousal_and_balances_by_style(
         tmp_path, monkeypatch):
     config, seen = TINY, training_contexts(monkeypatch)
-    data = energetic_data(config.order)
+    data = energetic_data()
     name, frames, context = data.splits["train"][1]
     data.splits["train"][1] = (name, frames[:90], context[:90])  # neutral: half as long
     settings = FCRBMTrainSettings(epochs=1, batch_size=60, edge_energy=0.25,
@@ -425,7 +418,7 @@ def test_low_arousal_weight_repeats_the_low_edge_styles(tmp_path, monkeypatch, w
     config, seen = TINY, training_contexts(monkeypatch)
     settings = FCRBMTrainSettings(epochs=1, batch_size=60, low_arousal_weight=weight)
     train_fcrbm(config, settings, progress=False, out_dir=tmp_path,
-                data=energetic_data(config.order))
+                data=energetic_data())
     arousal = torch.cat(seen)[:, 1]
     per_style = 180 - config.order
     assert int((arousal == 1.0).sum()) == weight * per_style

@@ -270,9 +270,11 @@ def edge_energy_contexts(data: FCRBMData, offset: float) -> FCRBMData:
     def style(context: np.ndarray) -> tuple[float, ...]:
         return tuple(np.round(context[0], 4))
 
+    energy = {split: [movement_energy(frames, data.codec) for _, frames, _ in items]
+              for split, items in data.splits.items()}
     pooled: dict[tuple[float, ...], list[tuple[np.ndarray, np.ndarray]]] = {}
-    for _, frames, context in data.splits["train"]:
-        pooled.setdefault(style(context), []).append(movement_energy(frames, data.codec))
+    for (_, _, context), measured in zip(data.splits["train"], energy["train"], strict=True):
+        pooled.setdefault(style(context), []).append(measured)
     stats = {}
     for key, parts in pooled.items():
         root, joints = (np.concatenate([p[k] for p in parts]) for k in (0, 1))
@@ -281,7 +283,7 @@ def edge_energy_contexts(data: FCRBMData, offset: float) -> FCRBMData:
     splits = {}
     for split, items in data.splits.items():
         moved = []
-        for name, frames, context in items:
+        for (name, frames, context), (root, joints) in zip(items, energy[split], strict=True):
             if style(context) not in stats:
                 raise DataError(f"{name}: its valence/arousal point {style(context)} has no "
                                 f"training clip; change split_seed or the styles")
@@ -290,7 +292,6 @@ def edge_energy_contexts(data: FCRBMData, offset: float) -> FCRBMData:
                 moved.append((name, frames, context))
                 continue
             root_mean, root_std, joint_mean, joint_std = stats[style(context)]
-            root, joints = movement_energy(frames, data.codec)
             score = (_z_score(root, root_mean, root_std)
                      + _z_score(joints, joint_mean, joint_std)) / 2
             score = np.clip(score / ENERGY_SPREAD, -ENERGY_CLIP, ENERGY_CLIP)
