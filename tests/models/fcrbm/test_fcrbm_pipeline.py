@@ -13,7 +13,7 @@ from cli_helpers import assert_failed_cleanly
 from emotive.core import Motion, Skeleton
 from emotive.core.ops import canonicalize_facing
 from emotive.errors import DataError, EmotionError, RigError
-from emotive.models.fcrbm.data import FrameCodec, clip_context, frame_vectors, movement_energy
+from emotive.models.fcrbm.data import FrameCodec, clip_context, frame_vectors, step_rate
 from emotive.models.fcrbm.generate import (
     FCRBMDivergedError,
     FCRBMInputError,
@@ -345,20 +345,62 @@ def test_context_noise_jitters_each_training_context(tmp_path, monkeypatch, nois
     assert float(z.min()) >= MIN_CONTEXT
 
 
-def test_movement_energy_measures_root_and_joint_speed():
-    slow, fast = walk(120, speed=0.5, turn=0.0, swing=0.15), walk(120, speed=1.5, turn=0.0)
-    frames = [frame_vectors(slow), frame_vectors(fast)]
-    codec = FrameCodec.fit(frames, [slow, fast])
-    root_slow, joints_slow = movement_energy(codec.encode(frames[0]), codec)
-    root_fast, joints_fast = movement_energy(codec.encode(frames[1]), codec)
-    assert root_slow.shape == joints_slow.shape == (120,)
-    np.testing.assert_allclose(root_slow * FPS, 0.5, rtol=1e-3)  # metres per frame
-    np.testing.assert_allclose(root_fast * FPS, 1.5, rtol=1e-3)
-    assert joints_fast.mean() > 2 * joints_slow.mean()
+def contacts_at(strikes: list[int], frames: int) -> np.ndarray:
+    """``(frames, 2)`` contacts whose rising edges are ``strikes``, feet alternating."""
+    contacts = np.zeros((frames, 2), dtype=bool)
+    for k, frame in enumerate(strikes):
+        contacts[frame:frame + 5, k % 2] = True
+    return contacts
+
+
+def test_step_rate_is_the_rate_between_the_strikes_around_each_frame(monkeypatch):
+    import emotive.features.contacts
+
+    strikes = [*range(15, 91, 15), *range(100, 171, 10)]  # 2 steps/s, then 3
+    monkeypatch.setattr(emotive.features.contacts, "foot_contacts",
+                        lambda positions, roles, fps: contacts_at(strikes, len(positions)))
+    motion = walk(180)
+    codec = FrameCodec.fit([frame_vectors(motion)], [motion])
+    rate = step_rate(codec.encode(frame_vectors(motion)), codec)
+    assert rate.shape == (180,)
+    np.testing.assert_allclose(rate[:75], 2.0)  # before the first strike too
+    np.testing.assert_allclose(rate[115:], 3.0)  # after the last strike too
+    assert np.all(np.diff(rate) >= 0)
+    strikes = [40]  # one strike: no interval to measure (the patched contacts read it)
+    assert not step_rate(codec.encode(frame_vectors(motion)), codec).any()
+
+
+@pytest.mark.data
+def test_step_rate_of_a_real_walk_matches_its_counted_strikes(bandai1_dir):
+    from emotive.core.roles import resolve_roles
+    from emotive.features.contacts import foot_contacts, foot_strikes
+    from emotive.io.bvh import read_bvh
+
+    motion = read_bvh(bandai1_dir / "data" / "dataset-1_walk_angry_001.bvh")
+    codec = FrameCodec.fit([frame_vectors(motion)], [motion])
+    rate = step_rate(codec.encode(frame_vectors(motion)), codec)
+    strikes = np.flatnonzero(foot_strikes(foot_contacts(
+        motion.positions_with_end_sites(), resolve_roles(motion.skeleton), motion.fps)).any(1))
+    counted = (len(strikes) - 1) * motion.fps / (strikes[-1] - strikes[0])
+    assert 2.0 < counted < 3.0
+    assert rate[strikes[0]:strikes[-1]].mean() == pytest.approx(counted, rel=0.05)
+
+
+#: Metres of root path per step of :func:`stride_contacts`.
+STEP_LENGTH = 0.35
+
+
+def stride_contacts(positions: np.ndarray, roles, fps: float) -> np.ndarray:
+    """Contacts of a walker whose every step is :data:`STEP_LENGTH` of its root's path."""
+    root = positions[:, roles.index["root"]][:, [0, 2]]
+    travelled = np.concatenate(([0.0], np.cumsum(np.linalg.norm(np.diff(root, axis=0), axis=1))))
+    strikes = np.flatnonzero(np.diff(np.floor(travelled / STEP_LENGTH)) > 0) + 1
+    return contacts_at(list(strikes), len(positions))
+
 
 
 def energetic_data() -> FCRBMData:
-    """Clips of a low-edge, a middle and a high-edge style whose second half moves faster."""
+    """Clips of a low-edge, a middle and a high-edge style whose second half walks faster."""
     def clip(arousal):
         first, second = walk(90, speed=0.8, swing=0.2), walk(90, speed=1.6, swing=0.4)
         return frame_vectors(first), frame_vectors(second), arousal
@@ -371,7 +413,15 @@ def energetic_data() -> FCRBMData:
     return FCRBMData(codec, {"train": items, "val": items[2:]})
 
 
-def test_edge_energy_raises_only_the_high_edge_style_by_how_much_it_moves():
+@pytest.fixture
+def stepping(monkeypatch):
+    """Foot contacts from :func:`stride_contacts`: the synthetic walks' feet slide."""
+    import emotive.features.contacts
+
+    monkeypatch.setattr(emotive.features.contacts, "foot_contacts", stride_contacts)
+
+
+def test_edge_energy_raises_only_the_high_edge_style_by_how_fast_it_steps(stepping):
     data = energetic_data()
     moved = edge_energy_contexts(data, 0.25)
     for (name, frames, base), (name2, frames2, shifted) in zip(
@@ -384,9 +434,9 @@ def test_edge_energy_raises_only_the_high_edge_style_by_how_much_it_moves():
             assert (change >= 0).all() and change[120:].min() > 0.1 and not change[:60].any()
         else:  # neutral, and tired at the low edge
             assert not change.any()
-    # the energy score is the mean of the two z-scores over ENERGY_SPREAD
-    root, joints = movement_energy(data.splits["train"][2][1], data.codec)
-    score = ((root - root.mean()) / root.std() + (joints - joints.mean()) / joints.std()) / 2
+    # the energy score is the z-score of the step rate over ENERGY_SPREAD
+    rate = step_rate(data.splits["train"][2][1], data.codec)
+    score = (rate - rate.mean()) / rate.std()
     expected = 0.25 * np.clip(score / ENERGY_SPREAD, -ENERGY_CLIP, ENERGY_CLIP).clip(0)
     np.testing.assert_allclose(moved.splits["train"][2][2][:, 1] - 3.0, expected)
     np.testing.assert_array_equal(moved.splits["val"][0][2], moved.splits["train"][2][2])
@@ -397,7 +447,7 @@ def test_edge_energy_raises_only_the_high_edge_style_by_how_much_it_moves():
 
 
 def test_training_with_edge_energy_sees_the_moved_arousal_and_balances_by_style(
-        tmp_path, monkeypatch):
+        tmp_path, monkeypatch, stepping):
     config, seen = TINY, training_contexts(monkeypatch)
     data = energetic_data()
     name, frames, context = data.splits["train"][1]

@@ -152,34 +152,37 @@ def clip_context(style: str, frames: int) -> np.ndarray:
     return np.repeat((2.0 + point)[None], frames, axis=0)
 
 
-def movement_energy(visible: np.ndarray, codec: FrameCodec) -> tuple[np.ndarray, np.ndarray]:
-    """How much a clip moves around each frame: its root speed and joint rotation speed.
+def step_rate(visible: np.ndarray, codec: FrameCodec) -> np.ndarray:
+    """How fast a clip steps around each frame.
+
+    The clip is decoded (:meth:`FrameCodec.decode`), its foot strikes found
+    (:func:`~emotive.features.contacts.foot_strikes`, either foot), and each frame takes the
+    rate of the interval between the strikes around it (before the first strike the first
+    interval's, after the last the last one's), averaged over a centred window of about a
+    second (edges repeated).
 
     Args:
         visible: ``(T, D)`` encoded frames of one clip (:meth:`FrameCodec.encode`).
         codec: their codec.
 
     Returns:
-        ``(T,)`` ground step of the root (metres per frame) and ``(T,)`` norm of the change of
-        the standardized joint dimensions since the previous frame (the first frame repeats
-        the second), each averaged over a centred window of about a second (edges repeated).
+        ``(T,)`` steps per second; zeros when the clip has fewer than two strikes.
     """
     from scipy.ndimage import uniform_filter1d
 
-    def column(k: int) -> np.ndarray:
-        """Column ``k`` of the ``K`` in its own units (a left-out one is constant)."""
-        at = np.flatnonzero(codec.keep == k)
-        if not len(at):
-            return np.full(len(visible), codec.constant[k])
-        return visible[:, at[0]] * codec.std[at[0]] + codec.mean[at[0]]
+    from emotive.core.roles import resolve_roles
+    from emotive.features.contacts import foot_contacts, foot_strikes
 
-    step = np.hypot(column(0), column(1))
-    joints = visible[:, int(np.searchsorted(codec.keep, ROOT_COLUMNS)):]
-    change = np.linalg.norm(np.diff(joints, axis=0), axis=1)
-    change = np.concatenate((change[:1], change)) if len(change) else np.zeros(len(visible))
-    window = round(codec.fps) | 1
-    return (uniform_filter1d(step, window, mode="nearest"),
-            uniform_filter1d(change, window, mode="nearest"))
+    motion = codec.decode(visible)
+    positions = motion.positions_with_end_sites()
+    contacts = foot_contacts(positions, resolve_roles(motion.skeleton), motion.fps)
+    strikes = np.flatnonzero(foot_strikes(contacts).any(axis=1))
+    if len(strikes) < 2:
+        return np.zeros(len(visible))
+    rates = motion.fps / np.diff(strikes)
+    interval = np.searchsorted(strikes, np.arange(len(visible)), side="right") - 1
+    per_frame = rates[np.clip(interval, 0, len(rates) - 1)]
+    return uniform_filter1d(per_frame, round(codec.fps) | 1, mode="nearest")
 
 
 @dataclass(frozen=True, eq=False)

@@ -58,9 +58,9 @@ MIN_CONTEXT = CONTEXT_RANGE[0]
 #: (``low_arousal_weight``: tired, exhausted), those at or above the second at the high edge
 #: (``edge_energy``: angry, active).
 EDGE_AROUSAL = (1.25, 2.75)
-#: Standard deviation of the mean of a frame's two energy z-scores (root and joint speed
-#: within its style) on the default data (0.82; the two correlate at about 0.35): dividing by
-#: it gives the energy score about unit spread.
+#: A frame's energy score is the z-score of its step rate within its style divided by this
+#: (the spread of the mean of root- and joint-speed z-scores, the score of the previous
+#: default model, kept so that edge_energy means the same lift per standard deviation).
 ENERGY_SPREAD = 0.85
 #: The energy score is clipped to this many units either way.
 ENERGY_CLIP = 2.0
@@ -90,9 +90,10 @@ class FCRBMTrainSettings:
             that the model also learns the plane around and between its training points.
         edge_energy: arousal offset (valence/arousal units) per unit of a frame's energy
             score, for the styles at the high edge of the arousal scale
-            (:data:`EDGE_AROUSAL`) only (:func:`edge_energy_contexts`): their frames that move
-            more than the style's average are labelled above its arousal, so that arousal
-            beyond the 1-3 scale (exaggeration) has data that move more than the edge styles.
+            (:data:`EDGE_AROUSAL`) only (:func:`edge_energy_contexts`): their frames that step
+            faster than the style's average are labelled above its arousal, so that arousal
+            beyond the 1-3 scale (exaggeration) has data that step faster than the edge
+            styles.
             0: every frame has its style's arousal.
         low_arousal_weight: the examples of the styles at the low edge of the arousal scale
             (:data:`EDGE_AROUSAL`) appear this many times in each epoch (after
@@ -249,14 +250,13 @@ def _z_score(values: np.ndarray, mean: float, std: float) -> np.ndarray:
 
 
 def edge_energy_contexts(data: FCRBMData, offset: float) -> FCRBMData:
-    """The data with the arousal of the high-edge styles' frames raised by how much they move.
+    """The data with the arousal of the high-edge styles' frames raised by how fast they step.
 
-    Each frame's energy score is the mean of the z-scores of its root speed and joint speed
-    (:func:`~emotive.models.fcrbm.data.movement_energy`) among the training frames of its
-    style (its valence/arousal point), divided by :data:`ENERGY_SPREAD` and clipped to
-    ``±`` :data:`ENERGY_CLIP`. A style with arousal at or above ``EDGE_AROUSAL[1]`` adds
-    ``offset`` times the positive part of the score to its frames' arousal; the others keep
-    theirs.
+    Each frame's energy score is the z-score of its step rate
+    (:func:`~emotive.models.fcrbm.data.step_rate`) among the training frames of its style (its
+    valence/arousal point), divided by :data:`ENERGY_SPREAD` and clipped to ``±``
+    :data:`ENERGY_CLIP`. A style with arousal at or above ``EDGE_AROUSAL[1]`` adds ``offset``
+    times the positive part of the score to its frames' arousal; the others keep theirs.
 
     Args:
         data: encoded clips with one valence/arousal point per clip.
@@ -265,35 +265,30 @@ def edge_energy_contexts(data: FCRBMData, offset: float) -> FCRBMData:
     Raises:
         DataError: a clip's style has no training clip.
     """
-    from emotive.models.fcrbm.data import movement_energy
+    from emotive.models.fcrbm.data import step_rate
 
     def style(context: np.ndarray) -> tuple[float, ...]:
         return tuple(np.round(context[0], 4))
 
-    energy = {split: [movement_energy(frames, data.codec) for _, frames, _ in items]
-              for split, items in data.splits.items()}
-    pooled: dict[tuple[float, ...], list[tuple[np.ndarray, np.ndarray]]] = {}
-    for (_, _, context), measured in zip(data.splits["train"], energy["train"], strict=True):
-        pooled.setdefault(style(context), []).append(measured)
-    stats = {}
-    for key, parts in pooled.items():
-        root, joints = (np.concatenate([p[k] for p in parts]) for k in (0, 1))
-        stats[key] = (root.mean(), root.std(), joints.mean(), joints.std())
+    rates = {split: [step_rate(frames, data.codec) for _, frames, _ in items]
+             for split, items in data.splits.items()}
+    pooled: dict[tuple[float, ...], list[np.ndarray]] = {}
+    for (_, _, context), rate in zip(data.splits["train"], rates["train"], strict=True):
+        pooled.setdefault(style(context), []).append(rate)
+    stats = {key: (np.concatenate(parts).mean(), np.concatenate(parts).std())
+             for key, parts in pooled.items()}
     high = EDGE_AROUSAL[1]
     splits = {}
     for split, items in data.splits.items():
         moved = []
-        for (name, frames, context), (root, joints) in zip(items, energy[split], strict=True):
+        for (name, frames, context), rate in zip(items, rates[split], strict=True):
             if style(context) not in stats:
                 raise DataError(f"{name}: its valence/arousal point {style(context)} has no "
                                 f"training clip; change split_seed or the styles")
-            arousal = context[0, 1]
-            if arousal < high:
+            if context[0, 1] < high:
                 moved.append((name, frames, context))
                 continue
-            root_mean, root_std, joint_mean, joint_std = stats[style(context)]
-            score = (_z_score(root, root_mean, root_std)
-                     + _z_score(joints, joint_mean, joint_std)) / 2
+            score = _z_score(rate, *stats[style(context)])
             score = np.clip(score / ENERGY_SPREAD, -ENERGY_CLIP, ENERGY_CLIP)
             score = np.maximum(score, 0)
             shifted = context.copy()
