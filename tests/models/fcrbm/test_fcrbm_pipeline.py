@@ -398,7 +398,6 @@ def stride_contacts(positions: np.ndarray, roles, fps: float) -> np.ndarray:
     return contacts_at(list(strikes), len(positions))
 
 
-
 def energetic_data() -> FCRBMData:
     """Clips of a low-edge, a middle and a high-edge style whose second half walks faster."""
     def clip(arousal):

@@ -275,8 +275,10 @@ def edge_energy_contexts(data: FCRBMData, offset: float) -> FCRBMData:
     pooled: dict[tuple[float, ...], list[np.ndarray]] = {}
     for (_, _, context), rate in zip(data.splits["train"], rates["train"], strict=True):
         pooled.setdefault(style(context), []).append(rate)
-    stats = {key: (np.concatenate(parts).mean(), np.concatenate(parts).std())
-             for key, parts in pooled.items()}
+    stats = {}
+    for key, parts in pooled.items():
+        style_rate = np.concatenate(parts)
+        stats[key] = (style_rate.mean(), style_rate.std())
     high = EDGE_AROUSAL[1]
     splits = {}
     for split, items in data.splits.items():
