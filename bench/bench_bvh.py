@@ -4,13 +4,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from common import comparison, median_seconds
+from bench.common import comparison, median_seconds
 from emotive.io.bvh import read_bvh
 
 
 def run(clips: list[Path], repeats: int = 3) -> list[dict]:
     """Frames per second parsing ``clips`` with each reader (median of ``repeats`` passes)."""
-    import bvhio
+    import bvhio  # noqa: PLC0415 (heavy: bvhio)
 
     frames = sum(read_bvh(p).num_frames for p in clips)
     ours = median_seconds(lambda: [read_bvh(p) for p in clips], repeats=repeats, warmup=0)

@@ -7,7 +7,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from common import comparison, median_seconds
+from bench.common import comparison, median_seconds
 from emotive.data.clips import load_clips
 from emotive.data.store import dataset_dir
 

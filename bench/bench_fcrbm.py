@@ -1,4 +1,6 @@
-"""FCRBM speed: generation with the factors multiplied out against through the factors, and
+"""FCRBM speed: generation with multiplied-out factors, and training time per epoch.
+
+FCRBM speed: generation with the factors multiplied out against through the factors, and
 training time per epoch at the config's sizes against the paper's.
 
 Generation, ours: :meth:`emotive.models.fcrbm.model.FCRBM.generate`, which multiplies the
@@ -24,7 +26,7 @@ from pathlib import Path
 
 import torch
 
-from common import comparison, median_seconds
+from bench.common import comparison, median_seconds
 from emotive.models.fcrbm.model import FCRBM
 from emotive.models.fcrbm.training import load_fcrbm_settings
 
@@ -40,8 +42,10 @@ def factored_generate(net: FCRBM, past: torch.Tensor, context: torch.Tensor,
     """The baseline: :meth:`FCRBM.generate` with every Gibbs half-step through the factors.
 
     Args:
+        net: the trained model.
         past: ``(B, N, D)`` seed frames.
         context: ``(T, B, C)`` context per frame.
+        generator: random generator of the Gibbs samples.
 
     Returns:
         ``(B, T, D)`` frames.

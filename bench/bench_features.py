@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import torch
 
-from common import comparison, median_seconds
+from bench.common import comparison, median_seconds
 from emotive.core import Motion
 from emotive.core.roles import resolve_roles
 from emotive.features.affective import affective_features, affective_features_np

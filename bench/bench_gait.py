@@ -21,10 +21,11 @@ from collections import deque
 import numpy as np
 import torch
 
-from common import comparison, median_seconds
+from bench.common import comparison, median_seconds
 from emotive.models.gait.generate import GaitGenerator
-from emotive.models.gait.model import GaitModel, load_gait_model
+from emotive.models.gait.model import GaitModel
 from emotive.models.gait.network import GaitInputs
+from emotive.models.registry import get_model
 from emotive.paths import figure8
 
 #: Input frames the window re-running baseline feeds the network for every new frame (2 s).
@@ -67,6 +68,7 @@ class WindowRerun:
 
     @torch.no_grad()
     def step(self) -> None:
+        """Advance every agent one frame, each by its own windowed forward."""
         g = self.gen
         for k, history in enumerate(self.history):
             window = GaitInputs(*(torch.stack(x)[None] for x in zip(*history, strict=True)))
@@ -79,9 +81,12 @@ class WindowRerun:
 
 def run(model: GaitModel | None = None, agents: tuple[int, ...] = (1, 10, 100, 1000),
         baseline_agents: tuple[int, ...] = (1, 10, 100), steps: int = 30) -> list[dict]:
-    """Agent-frames per second of the streaming generator for each agent count, and side by
-    side with the window re-running baseline for ``baseline_agents``."""
-    model = model or load_gait_model()
+    """Agent-frames per second of the streaming generator against the baseline.
+
+    Agent-frames per second of the streaming generator for each agent count, and side by
+    side with the window re-running baseline for ``baseline_agents``.
+    """
+    model = model or get_model("gait").load("generator").model
     threads = torch.get_num_threads()
     torch.set_num_threads(1)
     try:
@@ -120,6 +125,7 @@ def _run(model: GaitModel, agents: tuple[int, ...], baseline_agents: tuple[int, 
 
 
 def main() -> None:
+    """Print the benchmark rows and the total time."""
     start = time.perf_counter()
     for row in run():
         print(row)

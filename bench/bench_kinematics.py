@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from common import comparison, median_seconds
+from bench.common import comparison, median_seconds
 from emotive.core import Motion
 from emotive.transforms.kinematics import forward_kinematics
 from emotive.transforms.rotations import quaternion_apply, quaternion_multiply

@@ -1,12 +1,12 @@
 """Local Grid Bootstrap resampling + IK rebuild: 30,000 frames per emotion, parallel vs one process.
 
-Usage: ``python bench/bench_lgb.py [--frames 30000] [--repeats 3] [--workers 2]
+Usage: ``python -m bench.bench_lgb [--frames 30000] [--repeats 3] [--workers 2]
 [--emotions happy sad angry neutral] [--out bench/results/bench_lgb.json]``. Needs Bandai Namco
 dataset 1.
 
-Timed, per emotion, from a fitted :class:`emotive.models.lgb.model.EmotionResampler` (fitting
+Timed, per emotion, from a fitted :class:`emotive.models.lgb.resampler.EmotionResampler` (fitting
 takes about a second and is reported apart): resampling the four processes and rebuilding the
-motion by IK, :meth:`~emotive.models.lgb.model.EmotionResampler.generate`. Ours: the IK chunks
+motion by IK, :meth:`~emotive.models.lgb.resampler.EmotionResampler.generate`. Ours: the IK chunks
 in ``--workers`` spawned worker processes (their start-up included); baseline: the same chunks
 in this process. Both give the same motion (checked). Issue 7's target: under 60 s per emotion
 on 2 CPU cores. The IK milliseconds per frame are those of the one-process run (all five
@@ -17,16 +17,17 @@ from __future__ import annotations
 
 import argparse
 import statistics
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
+import torch
+
+from bench.common import comparison, machine_info, write_record
+from emotive.data.clips import load_clips
+from emotive.models.lgb.resampler import EmotionResampler
 
 HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
-
-from common import comparison, machine_info, write_record  # noqa: E402
 
 EMOTIONS = ("happy", "sad", "angry", "neutral")
 #: Frames per emotion (the paper's 30,000) and the issue's time limit for them, seconds.
@@ -56,11 +57,6 @@ def run(
         workers: worker processes of the parallel runs.
         details: if given, one dict per emotion with every measured number is appended.
     """
-    import torch
-
-    from emotive.data.clips import load_clips
-    from emotive.models.lgb.model import EmotionResampler
-
     torch.set_num_threads(1)
     clips = load_clips("bandai-namco-1")
     out = []
@@ -107,6 +103,7 @@ def run(
 
 
 def main() -> None:
+    """Run the benchmark from the command line and write its record."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--frames", type=int, default=FRAMES)
     parser.add_argument("--repeats", type=int, default=3)

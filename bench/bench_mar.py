@@ -9,21 +9,28 @@ frames), for an unlabeled input and for one labelled with its action. Also: seco
 the index and build the trees, and the memory they take (resident set growth and the arrays'
 bytes). Numbers are medians over the streamed frames.
 
-Usage: ``python bench/bench_mar.py [--frames N] [--baseline-frames N]``.
+Usage: ``python -m bench.bench_mar [--frames N] [--baseline-frames N]``.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
-import sys
 import time
 from pathlib import Path
 
-HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
+import torch
 
-from common import comparison, machine_info, write_record  # noqa: E402
+from bench.common import comparison, machine_info, write_record
+from emotive.data.clips import load_clips
+from emotive.models.mar.database import MARDatabase
+from emotive.models.mar.default_index import default_index_path, load_default_index
+from emotive.models.mar.representation import RigCodec
+from emotive.models.mar.search import PointCloudSearch
+from emotive.models.mar.transfer import StyleTransfer
+
+HERE = Path(__file__).resolve().parent
 
 CLIP = "dataset-2_walk_normal_010"
 
@@ -31,16 +38,12 @@ CLIP = "dataset-2_walk_normal_010"
 def _rss_mb() -> float:
     with open("/proc/self/statm") as fh:
         pages = int(fh.read().split()[1])
-    import os
 
     return pages * os.sysconf("SC_PAGE_SIZE") / 2**20
 
 
 def _stream_ms(db, search, motion, frames: int, brute: bool, action: str | None) -> float:
     """Median ms of :meth:`StyleTransfer.push` over ``frames`` frames (after 5 warm-up)."""
-    from emotive.models.mar.representation import RigCodec
-    from emotive.models.mar.transfer import StyleTransfer
-
     stream = StyleTransfer(db, RigCodec.for_motion(motion), "proud=0.6,angry=0.4",
                            action=action, search=search, brute_force=brute)
     times = []
@@ -54,16 +57,10 @@ def _stream_ms(db, search, motion, frames: int, brute: bool, action: str | None)
 
 def run(frames: int = 200, baseline_frames: int = 20) -> list[dict]:
     """The records of the benchmark (see the module docstring)."""
-    import torch
-    from threadpoolctl import threadpool_limits
-
-    from emotive.data.clips import load_clips
-    from emotive.models.mar.database import MARDatabase, load_default_index
-    from emotive.models.mar.search import PointCloudSearch
+    from threadpoolctl import threadpool_limits  # noqa: PLC0415 (optional threadpoolctl)
 
     torch.set_num_threads(1)
     load_default_index(progress=True)  # built on first use, outside the timing
-    from emotive.models.mar.database import default_index_path
 
     before = _rss_mb()
     start = time.perf_counter()
@@ -94,6 +91,7 @@ def run(frames: int = 200, baseline_frames: int = 20) -> list[dict]:
 
 
 def main() -> None:
+    """Run the benchmark from the command line and write its record."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--frames", type=int, default=200)
     parser.add_argument("--baseline-frames", type=int, default=20)

@@ -2,12 +2,19 @@
 
 from __future__ import annotations
 
+import json
 import os
 import platform
 import statistics
 import time
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
+
+import numpy
+import torch
+
+from emotive.io.atomic import atomic_output
 
 
 def median_seconds(fn: Callable[[], Any], repeats: int = 5, warmup: int = 1) -> float:
@@ -24,9 +31,6 @@ def median_seconds(fn: Callable[[], Any], repeats: int = 5, warmup: int = 1) -> 
 
 def machine_info() -> dict[str, Any]:
     """Facts that make numbers comparable across runs."""
-    import numpy
-    import torch
-
     return {
         "python": platform.python_version(),
         "platform": platform.platform(),
@@ -61,11 +65,6 @@ def comparison(
 
 def write_record(path: Any, record: dict[str, Any]) -> None:
     """Write a result record as indented JSON, atomically, and say where."""
-    import json
-    from pathlib import Path
-
-    from emotive.io.atomic import atomic_output
-
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     with atomic_output(path) as tmp:

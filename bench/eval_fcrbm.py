@@ -1,6 +1,6 @@
 """Evaluation of the valence/arousal FCRBM (issue 6, section 3).
 
-Usage: ``python bench/eval_fcrbm.py [--checkpoint PATH] [--seeds 3] [--seconds 20]
+Usage: ``python -m bench.eval_fcrbm [--checkpoint PATH] [--seeds 3] [--seconds 20]
 [--long-seconds 300] [--out bench/results/fcrbm-eval.json]``. Needs the data for the real
 references (``EMOTIVE_DATA`` or ``../shared/data``).
 
@@ -41,17 +41,43 @@ from __future__ import annotations
 
 import argparse
 import itertools
-import sys
+import json
+import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 import torch
 
-HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
+from bench.common import machine_info, write_record
+from emotive.core.ops import crop
+from emotive.core.roles import resolve_roles
+from emotive.data.clips import load_clips
+from emotive.data.emotion import VALENCE_AROUSAL, Emotion, EmotionSchedule, style_to_label
+from emotive.eval.classifier import load_default_classifier, window_labels
+from emotive.eval.sources import EvaluatedMotion
+from emotive.eval.suites import (
+    affect_suite,
+    emotion_suite,
+    longrun_suite,
+    real_reference,
+    transition_suite,
+)
+from emotive.features.contacts import foot_contacts, foot_strikes
+from emotive.models.fcrbm.checkpoint import load_fcrbm_checkpoint
+from emotive.models.fcrbm.generate import (
+    ROOT_MODES,
+    constant_context,
+    decode_frames,
+    default_checkpoint_path,
+    emotion_context,
+    generate_motion,
+    schedule_context,
+)
+from emotive.models.fcrbm.training import FCRBMTrainSettings, load_fcrbm_data
+from emotive.models.registry import get_model
 
-from common import machine_info, write_record  # noqa: E402
+HERE = Path(__file__).resolve().parent
 
 EMOTIONS = ("happy", "sad", "angry", "neutral")
 AXIS_VALUES = (1.0, 1.5, 2.0, 2.5, 3.0, 3.5)
@@ -63,9 +89,6 @@ WALKING_STEPS = 0.8
 
 def measures(motion) -> dict[str, float]:
     """Root speed and joint speed relative to the root (m/s) and steps per second."""
-    from emotive.core.roles import resolve_roles
-    from emotive.features.contacts import foot_contacts, foot_strikes
-
     roles = resolve_roles(motion.skeleton)
     p = motion.positions_with_end_sites()
     root = p[:, roles.index["root"]]
@@ -78,18 +101,21 @@ def measures(motion) -> dict[str, float]:
 
 
 def is_walking(measured: dict[str, float]) -> bool:
-    """Whether :func:`measures` of a run show walking (:data:`WALKING_JOINT_SPEED`,
-    :data:`WALKING_STEPS`)."""
+    """Whether :func:`measures` of a run show walking.
+
+    Whether :func:`measures` of a run show walking (:data:`WALKING_JOINT_SPEED`,
+    :data:`WALKING_STEPS`).
+    """
     return bool(measured["joint_speed"] > WALKING_JOINT_SPEED
                 and measured["step_frequency"] > WALKING_STEPS)
 
 
 def real_trend() -> dict:
-    """The measures of real walks grouped by their style's arousal and valence (1-3 scale,
-    rounded to the nearest half)."""
-    from emotive.data.clips import load_clips
-    from emotive.data.emotion import VALENCE_AROUSAL, style_to_label
+    """The measures of real walks grouped by their style's arousal and valence.
 
+    The measures of real walks grouped by their style's arousal and valence (1-3 scale,
+    rounded to the nearest half).
+    """
     groups: dict[str, dict[float, list[dict]]] = {"arousal": {}, "valence": {}}
     for name in ("bandai-namco-1", "bandai-namco-2-locomotion"):
         for clip in load_clips(name, contents=("walk",)):
@@ -107,13 +133,6 @@ def real_trend() -> dict:
 
 def control(model, seeds: int, seconds: float) -> dict:
     """Measures along the arousal and valence axes (the other held at 2), per root path."""
-    from emotive.models.fcrbm.generate import (
-        ROOT_MODES,
-        constant_context,
-        decode_frames,
-        generate_motion,
-    )
-
     frames = round(seconds * model.fps)
     out: dict = {}
     for axis in ("arousal", "valence"):
@@ -145,20 +164,16 @@ def control(model, seeds: int, seconds: float) -> dict:
 
 
 def _item(name, motion, context_emotions, labels):
-    from emotive.eval.sources import EvaluatedMotion
-
     return EvaluatedMotion(name, motion, context_emotions, labels)
 
 
 def nearest_training_walks(checkpoint: Path | None) -> dict:
-    """Per emotion: the checkpoint's training style nearest the emotion's valence/arousal, its
-    distance and that style's real walks (every split), ``{emotion: (style, distance,
-    [Motion])}``."""
-    from emotive.data.clips import load_clips
-    from emotive.data.emotion import VALENCE_AROUSAL, style_to_label
-    from emotive.models.fcrbm.generate import default_checkpoint_path, emotion_context
-    from emotive.models.fcrbm.training import FCRBMTrainSettings, load_fcrbm_checkpoint
+    """Per emotion: the nearest training style, its distance and its real walks.
 
+    Per emotion: the checkpoint's training style nearest the emotion's valence/arousal, its
+    distance and that style's real walks (every split), ``{emotion: (style, distance,
+    [Motion])}``.
+    """
     *_, ckpt = load_fcrbm_checkpoint(checkpoint or default_checkpoint_path())
     settings = FCRBMTrainSettings(**ckpt["train"])
     points: dict[str, np.ndarray] = {}
@@ -180,10 +195,11 @@ def nearest_training_walks(checkpoint: Path | None) -> dict:
 
 
 def real_ceiling(nearest: dict, classifier) -> dict:
-    """Per emotion: the classifier's window accuracy on the real walks of the nearest training
-    style (:func:`nearest_training_walks`)."""
-    from emotive.eval.classifier import window_labels
+    """Per emotion: classifier accuracy on the nearest training style's real walks.
 
+    Per emotion: the classifier's window accuracy on the real walks of the nearest training
+    style (:func:`nearest_training_walks`).
+    """
     out = {}
     for emotion, (style, distance, motions) in nearest.items():
         read = [label for motion in motions if motion.duration >= classifier.config.min_seconds
@@ -195,16 +211,13 @@ def real_ceiling(nearest: dict, classifier) -> dict:
 
 
 def primed(model, nearest: dict, classifier, seeds: int, seconds: float) -> dict:
-    """The emotion suite on motion started from real frames, as in the paper: ``N + 1`` frames
-    from frame 30 (then 60, 90, ... when there are fewer walks than seeds, wrapping within the
-    walk) of the walks of the training style nearest the requested emotion (``same``), or of
-    the style nearest neutral (``from_neutral``: can the context alone lead the motion to the
-    emotion?)."""
-    from emotive.core.ops import crop
-    from emotive.data.emotion import Emotion
-    from emotive.eval.suites import emotion_suite
-    from emotive.models.fcrbm.generate import constant_context, emotion_context, generate_motion
+    """The emotion suite on motion started from real frames, as in the paper.
 
+    ``N + 1`` frames from frame 30 (then 60, 90, ... when there are fewer walks than seeds, wrapping
+    within the walk) of the walks of the training style nearest the requested emotion (``same``), or
+    of the style nearest neutral (``from_neutral``: can the context alone lead the motion to the
+    emotion?).
+    """
     frames, order = round(seconds * model.fps), model.network.config.order
     labels = classifier.labels
     out = {}
@@ -229,23 +242,6 @@ def primed(model, nearest: dict, classifier, seeds: int, seconds: float) -> dict
 def emotions_and_transitions(model, checkpoint: Path | None, seeds: int, seconds: float,
                              long_seconds: float) -> dict:
     """The emotion, affect, transition and long-run suites on generated motion."""
-    from emotive.data.emotion import Emotion, EmotionSchedule
-    from emotive.eval.classifier import load_default_classifier
-    from emotive.eval.suites import (
-        affect_suite,
-        emotion_suite,
-        longrun_suite,
-        real_reference,
-        transition_suite,
-    )
-    from emotive.models.fcrbm.generate import (
-        constant_context,
-        decode_frames,
-        emotion_context,
-        generate_motion,
-        schedule_context,
-    )
-
     classifier = load_default_classifier()
     labels = classifier.labels
     reference = real_reference(labels)
@@ -279,11 +275,6 @@ def emotions_and_transitions(model, checkpoint: Path | None, seeds: int, seconds
     for row in out["affect"]["labels"]:
         print(f"affect {row['label']}: Frechet to real {row.get('frechet_to_real', 'n/a'):.3g} "
               f"(real train to real {row.get('frechet_real_train_to_real', float('nan')):.3g})")
-
-    import json
-    import tempfile
-
-    from emotive.core.ops import crop
 
     transitions = []
     half = 0.5 * seconds
@@ -330,8 +321,6 @@ def emotions_and_transitions(model, checkpoint: Path | None, seeds: int, seconds
 
 def speed(model, seconds: float = 10.0) -> dict:
     """Generated frames per second for 1 and 20 agents in one batch (medians of 3)."""
-    from emotive.models.fcrbm.generate import constant_context, generate_motion
-
     frames = round(seconds * model.fps)
     out = {}
     for agents in (1, 20):
@@ -354,19 +343,6 @@ WALK_EMOTIONS = ("neutral", "happy", "sad", "angry", "tired", "elderly", "active
 
 def walking(model, checkpoint: Path | None, seeds: int) -> dict:
     """The walking screen of the module docstring."""
-    from emotive.models.fcrbm.generate import (
-        constant_context,
-        decode_frames,
-        default_checkpoint_path,
-        emotion_context,
-        generate_motion,
-    )
-    from emotive.models.fcrbm.training import (
-        FCRBMTrainSettings,
-        load_fcrbm_checkpoint,
-        load_fcrbm_data,
-    )
-
     runs = [e for e in WALK_EMOTIONS for _ in range(seeds)]
     context = np.stack([constant_context(*emotion_context(e), 450) for e in runs], 1)
     _, frames = generate_motion(model, context, seed=0)
@@ -398,6 +374,7 @@ def walking(model, checkpoint: Path | None, seeds: int) -> dict:
 
 
 def main() -> None:
+    """Run the evaluation from the command line and write its record."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--checkpoint", type=Path, default=None)
     parser.add_argument("--seeds", type=int, default=3)
@@ -409,9 +386,7 @@ def main() -> None:
     args = parser.parse_args()
     torch.set_num_threads(1)
 
-    from emotive.models.fcrbm.generate import load_fcrbm_model
-
-    model = load_fcrbm_model(args.checkpoint)
+    model = get_model("fcrbm").load("generator", weights=args.checkpoint).model
     record: dict = {"machine": machine_info(), "date": time.strftime("%Y-%m-%d %H:%M"),
                     "checkpoint": str(args.checkpoint or "built-in")}
     if args.part in ("all", "control"):

@@ -1,6 +1,6 @@
 """Evaluation of the emotive gait network (issue 3, section 6); prints and saves JSON.
 
-Usage: ``python bench/eval_gait.py [--out bench/results/gait-eval.json] [--quick]``. Needs the
+Usage: ``python -m bench.eval_gait [--out bench/results/gait-eval.json] [--quick]``. Needs the
 Bandai Namco data and the committed checkpoints (``src/emotive/assets/gait/``).
 
 * Table 1 protocol (:func:`emotive.eval.table1.table1`) on the held-out test clips, at 10 and
@@ -19,16 +19,28 @@ Bandai Namco data and the committed checkpoints (``src/emotive/assets/gait/``).
 from __future__ import annotations
 
 import argparse
-import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+from rich.progress import track
+
+from bench.common import machine_info, write_record
+from emotive.data.clips import load_clips
+from emotive.data.emotion import ALL_LABELS, Emotion, EmotionSchedule
+from emotive.data.splits import split_clips
+from emotive.eval.classifier import load_default_classifier
+from emotive.eval.evaluate import Subject, resolve_subject, run_suites
+from emotive.eval.sources import standard_requests
+from emotive.eval.table1 import table1
+from emotive.models.api import GenerationRequest
+from emotive.models.gait.generate import GaitGenerator
+from emotive.models.gait.walks import generate_walks
+from emotive.models.registry import get_model, model_names
+from emotive.paths import circle, figure8, line
 
 HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
-
-from common import machine_info, write_record  # noqa: E402
 
 #: Steps of the long-horizon run (issue 3: 10,000).
 LONG_STEPS = 10_000
@@ -40,20 +52,11 @@ WINDOW_SECONDS = 10.0
 
 def table1_rows(quick: bool, checkpoint: Path | None = None) -> dict:
     """Table 1 per test set and rate, every model side by side (and ``checkpoint``'s)."""
-    from emotive.data.clips import load_clips
-    from emotive.data.emotion import ALL_LABELS
-    from emotive.data.splits import split_clips
-    from emotive.eval.evaluate import MODELS, gait_subject
-    from emotive.eval.table1 import ZeroVelocity, table1
-
-    subjects = {name: MODELS[name]() for name in MODELS}
+    predictors = [get_model(name).load("predictor") for name in model_names("predictor")]
     if checkpoint is not None:
-        subjects[f"{checkpoint.parent.name}/{checkpoint.name}"] = gait_subject(checkpoint)
-    predictors = []
-    for name, subject in subjects.items():
-        subject.predictor.name = {"emotive-gait": "Ours"}.get(name, name)
-        predictors.append(subject.predictor)
-    predictors.append(ZeroVelocity())
+        predictor = get_model("gait").load("predictor", weights=checkpoint)
+        predictor.name = f"{checkpoint.parent.name}/{checkpoint.name}"
+        predictors.insert(-1, predictor)
     d1 = split_clips(load_clips("bandai-namco-1", locomotion=True))["test"]
     sets = {"dataset-1 test": d1}
     if not quick:
@@ -80,10 +83,11 @@ def _mean_joint_speed(world: np.ndarray, fps: float, window: int) -> np.ndarray:
 
 
 def real_speed_bands() -> dict[str, dict]:
-    """5-95 % of the mean joint speed over 1-second windows of the real ``walk`` clips of each
-    emotion (both data sets: dataset 2's ``normal`` walks are neutral too), all splits."""
-    from emotive.data.clips import load_clips
+    """5-95 % of the mean joint speed of real walks per emotion.
 
+    5-95 % of the mean joint speed over 1-second windows of the real ``walk`` clips of each
+    emotion (both data sets: dataset 2's ``normal`` walks are neutral too), all splits.
+    """
     clips = [c for name in ("bandai-namco-1", "bandai-namco-2-locomotion")
              for c in load_clips(name, locomotion=True) if c.content == "walk"]
     bands = {}
@@ -102,13 +106,7 @@ def real_speed_bands() -> dict[str, dict]:
 
 def long_horizon(steps: int, checkpoint: Path | None = None) -> dict:
     """:data:`LONG_STEPS` steps per emotion on a figure-8 (see the module docstring)."""
-    from rich.progress import track
-
-    from emotive.models.gait.generate import GaitGenerator
-    from emotive.models.gait.model import load_gait_model
-    from emotive.paths import figure8
-
-    model = load_gait_model(checkpoint)
+    model = get_model("gait").load("generator", weights=checkpoint).model
     path = figure8()
     gen = GaitGenerator(model)
     for e in EMOTIONS:
@@ -148,15 +146,13 @@ def long_horizon(steps: int, checkpoint: Path | None = None) -> dict:
 
 
 def turn_speeds(checkpoint: Path | None = None) -> dict:
-    """Walking speed of a neutral agent on circles of decreasing radius against a straight
-    line, and in the data: dataset-2 ``walk-turn-*`` clips against its straight ``walk`` clips
-    (root speed over the frames where the root moves)."""
-    from emotive.data.clips import load_clips
-    from emotive.models.gait.generate import generate_walks
-    from emotive.models.gait.model import load_gait_model
-    from emotive.paths import circle, line
+    """Walking speed on curved paths against straight ones, generated and in the data.
 
-    model = load_gait_model(checkpoint)
+    Walking speed of a neutral agent on circles of decreasing radius against a straight
+    line, and in the data: dataset-2 ``walk-turn-*`` clips against its straight ``walk`` clips
+    (root speed over the frames where the root moves).
+    """
+    model = get_model("gait").load("generator", weights=checkpoint).model
     paths = {"line": line(40.0), "circle r=3 m": circle(3.0), "circle r=1.5 m": circle(1.5),
              "circle r=0.75 m": circle(0.75)}
     walks = generate_walks(model, list(paths.values()), ["neutral"] * len(paths), 12.0)
@@ -179,26 +175,19 @@ def turn_speeds(checkpoint: Path | None = None) -> dict:
 
 def generated_suites(seeds: int, checkpoint: Path | None = None) -> dict:
     """Emotion, transition, quality and path suites on generated 10-second walks."""
-    from emotive.data.emotion import Emotion, EmotionSchedule
-    from emotive.eval.classifier import load_default_classifier
-    from emotive.eval.evaluate import Subject, gait_subject, run_suites
-    from emotive.eval.sources import GenerationRequest, standard_requests
-    from emotive.models.gait.generate import NetworkGenerator
-    from emotive.paths import figure8
-
     classifier = load_default_classifier()
     labels = classifier.labels
     requests = [
         GenerationRequest(f"{e}-{s}", EmotionSchedule.constant(Emotion.one_hot(e, labels)),
-                          figure8(), 10.0, seed=s)
+                          10.0, figure8(), seed=s)
         for e in EMOTIONS for s in range(seeds)
     ] + [r for r in standard_requests(labels, seconds=20.0) if "-to-" in r.name]
     out = {}
-    subject = gait_subject(checkpoint)
+    subject = resolve_subject("gait" if checkpoint is None else checkpoint, labels)
     for suite in ("emotion", "transition", "quality", "path"):
         results, _ = run_suites(subject, suite, classifier, requests=requests)
         out[suite] = results[suite]
-    raw = Subject("raw", generator=NetworkGenerator(subject.generator.model, clean_feet=False))
+    raw = Subject("raw", generator=replace(subject.generator, clean_feet=False))
     out["quality_raw"] = run_suites(raw, "quality", classifier, requests=requests)[0]["quality"]
     e = out["emotion"]
     print(f"\nperceived emotion: window accuracy {e['window_accuracy']:.3f} on generated walks, "
@@ -217,6 +206,7 @@ def generated_suites(seeds: int, checkpoint: Path | None = None) -> dict:
 
 
 def main() -> None:
+    """Run the evaluation from the command line and write its record."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=HERE / "results" / "gait-eval.json")
     parser.add_argument("--quick", action="store_true",

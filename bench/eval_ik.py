@@ -1,6 +1,6 @@
 """Reconstruction study of issue 7 (section 3): rebuild real clips from their own trajectories.
 
-Usage: ``python bench/eval_ik.py [--out bench/results/eval_ik.json] [--split test|val|all]
+Usage: ``python -m bench.eval_ik [--out bench/results/eval_ik.json] [--split test|val|all]
 [--max-clips N]``. Needs Bandai Namco dataset 1.
 
 The clips are dataset 1's clips whose emotion is happy, sad, angry or neutral, split by
@@ -18,7 +18,7 @@ start), and compared with the original:
 * IK time, ms per frame (all five chains, one thread);
 * perceived emotion by the built-in classifier (4 s windows, 1 s hop) on original and rebuilt:
   window accuracy against the clip's emotion, agreement of the per-window argmax, mean absolute
-  difference of the probabilities; and a mixed ANOVA (:func:`emotive.eval.stats.mixed_anova`) on
+  difference of the probabilities; and a mixed ANOVA (:func:`emotive.eval.anova.mixed_anova`) on
   each clip's mean probability of its intended emotion, source (original / rebuilt) within clips,
   emotion between clips.
 """
@@ -26,16 +26,22 @@ start), and compared with the original:
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
+from rich.progress import track
+
+from bench.common import machine_info, write_record
+from emotive.core.roles import resolve_roles
+from emotive.data.clips import load_clips
+from emotive.data.splits import split_clips
+from emotive.eval.anova import mixed_anova
+from emotive.eval.classifier import ClassifierError, load_default_classifier
+from emotive.eval.stats import MissingDependencyError, StatsInputError
+from emotive.ik import reconstruct, resolve_chains
 
 HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
-
-from common import machine_info, write_record  # noqa: E402
 
 EMOTIONS = ("happy", "sad", "angry", "neutral")
 DATASET = "bandai-namco-1"
@@ -48,9 +54,6 @@ OFF_TARGET_MM = 10.0
 
 def select_clips(split: str, max_clips: int | None) -> list:
     """Dataset 1's clips of :data:`EMOTIONS` in ``split`` (``"all"``: every split)."""
-    from emotive.data.clips import load_clips
-    from emotive.data.splits import split_clips
-
     clips = [c for c in load_clips(DATASET) if c.info.emotion in EMOTIONS]
     chosen = clips if split == "all" else split_clips(clips)[split]
     return chosen[:max_clips] if max_clips is not None else chosen
@@ -58,8 +61,6 @@ def select_clips(split: str, max_clips: int | None) -> list:
 
 def _below_root(motion) -> np.ndarray:
     """Indices of the ``(J + E)`` points that are not ancestors of the pelvis (root role)."""
-    from emotive.core.roles import resolve_roles
-
     sk = motion.skeleton
     above, j = set(), int(sk.parents[resolve_roles(sk).index["root"]])
     while j >= 0:
@@ -71,9 +72,6 @@ def _below_root(motion) -> np.ndarray:
 
 def rebuild_clip(clip, classifier) -> dict:
     """Rebuild one clip; errors (mm) per chain, timing and classifier outputs."""
-    from emotive.eval.classifier import ClassifierError
-    from emotive.ik import reconstruct, resolve_chains
-
     motion = clip.motion
     chains = resolve_chains(motion.skeleton, motion)
     result = reconstruct(motion, chains)
@@ -193,12 +191,9 @@ def intended_probabilities(records: list[dict], labels: tuple[str, ...]) -> list
 
 
 def anova(rows: list[dict]) -> dict:
-    """Mixed ANOVA on ``p_intended``: source within clips, emotion between; or why it cannot
-    run."""
-    from emotive.eval.stats import MissingDependencyError, StatsInputError, mixed_anova
-
+    """Mixed ANOVA on ``p_intended``: source within clips, emotion between; or why it cannot run."""
     try:
-        import pandas as pd
+        import pandas as pd  # noqa: PLC0415 (heavy: pandas)
 
         result = mixed_anova(
             pd.DataFrame(rows), dv="p_intended", within="source", between="emotion", subject="clip"
@@ -302,6 +297,7 @@ def report(
 
 
 def main() -> None:
+    """Run the evaluation from the command line and write its record."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=HERE / "results" / "eval_ik.json")
     parser.add_argument(
@@ -318,9 +314,6 @@ def main() -> None:
         help="only the first N clips (quick runs)",
     )
     args = parser.parse_args()
-    from rich.progress import track
-
-    from emotive.eval.classifier import load_default_classifier
 
     classifier = load_default_classifier()
     labels = classifier.labels

@@ -1,9 +1,9 @@
 """Resampling study of issue 7 (section 3): Local Grid Bootstrap motion of four emotions.
 
-Usage: ``python bench/eval_lgb.py [--frames 30000] [--seed 0] [--workers 2]
+Usage: ``python -m bench.eval_lgb [--frames 30000] [--seed 0] [--workers 2]
 [--out bench/results/eval_lgb.json]``. Needs Bandai Namco dataset 1.
 
-For each of happy, sad, angry and neutral, an :class:`emotive.models.lgb.model.EmotionResampler`
+For each of happy, sad, angry and neutral, an :class:`emotive.models.lgb.resampler.EmotionResampler`
 is fitted on every dataset-1 clip of the emotion and ``--frames`` frames (the paper's 30,000)
 are resampled and rebuilt by IK. Measured:
 
@@ -33,7 +33,7 @@ are resampled and rebuilt by IK. Measured:
   pseudo-observers; observer ``k`` of a source sees, for each emotion, the ``k``-th of
   :data:`OBSERVERS` evenly spaced 4-s windows of that source and emotion, and gives the
   classifier's probability of the intended emotion. Mixed ANOVA
-  (:func:`emotive.eval.stats.mixed_anova`): source between observers, emotion within.
+  (:func:`emotive.eval.anova.mixed_anova`): source between observers, emotion within.
 
   The paper's observers had never seen the captured clips. The committed classifier was trained
   on most of them, which favours the originals (its accuracy on them is 0.90-1.00, on the one
@@ -53,18 +53,30 @@ are resampled and rebuilt by IK. Measured:
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
+import torch
+from rich.progress import track
+from scipy.spatial import cKDTree
+from scipy.stats import ks_2samp
+
+from bench.common import machine_info, write_record
+from bench.eval_ik import DATASET, EMOTIONS, HOP_SECONDS, WINDOW_SECONDS
+from emotive.data.clips import load_clips
+from emotive.data.splits import split_clips
+from emotive.eval.anova import mixed_anova
+from emotive.eval.classifier import ClassifierError, load_default_classifier
+from emotive.eval.classifier_training import load_split_features, train_classifier
+from emotive.eval.stats import MissingDependencyError, StatsInputError
+from emotive.ik import reconstruct, resolve_chains
+from emotive.models.lgb.bootstrap import LocalGridBootstrap
+from emotive.models.lgb.features import clip_features, effector_columns
+from emotive.models.lgb.novelty import THRESHOLD_PERCENTILE, windows
+from emotive.models.lgb.resampler import PROCESSES, EmotionResampler
 
 HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
-
-from common import machine_info, write_record  # noqa: E402
-from emotive.models.lgb.novelty import THRESHOLD_PERCENTILE  # noqa: E402
-from eval_ik import DATASET, EMOTIONS, HOP_SECONDS, WINDOW_SECONDS  # noqa: E402
 
 #: Frames of the barycentre-rule baselines (they step through a KD-tree query each frame).
 BASELINE_FRAMES = 10000
@@ -87,8 +99,6 @@ OBSERVERS = 16
 
 def _point_columns(model, process: str) -> list[np.ndarray]:
     """Columns (within the process's state) of each 3-D point of a process."""
-    from emotive.models.lgb.model import PROCESSES
-
     cols, off = [], 0
     for block in PROCESSES[process][0]:
         width = model.layout[block].width
@@ -101,9 +111,6 @@ def _point_columns(model, process: str) -> list[np.ndarray]:
 def trajectory_stats(observed: np.ndarray, generated: np.ndarray, points: list[np.ndarray],
                      fps: float, index: np.ndarray | None = None) -> dict:
     """Speed, stalling, drift and range of generated ``(n, D)`` against closed observed rows."""
-    from scipy.spatial import cKDTree
-    from scipy.stats import ks_2samp
-
     def speeds(x: np.ndarray) -> np.ndarray:
         return fps * np.mean([np.linalg.norm(np.diff(x[:, c], axis=0), axis=1) for c in points],
                              0)
@@ -145,8 +152,11 @@ def trajectory_stats(observed: np.ndarray, generated: np.ndarray, points: list[n
 
 
 def _relative_to_anchor(model, rows: np.ndarray, state: tuple[str, ...]) -> np.ndarray:
-    """A process's state columns of ``(T, F)`` rows, each 3-D point taken relative to its
-    chain's first joint (the shoulder for the arms, which moves with the clavicle)."""
+    """A process's state columns of ``(T, F)`` rows, relative to their chain's first joint.
+
+    A process's state columns of ``(T, F)`` rows, each 3-D point taken relative to its
+    chain's first joint (the shoulder for the arms, which moves with the clavicle).
+    """
     out = []
     for block in state:
         col = model.layout[block]
@@ -160,11 +170,11 @@ def _relative_to_anchor(model, rows: np.ndarray, state: tuple[str, ...]) -> np.n
 
 def process_stats(model, final: np.ndarray, samples: dict, baseline_frames: int,
                   seed: int) -> dict:
-    """:func:`trajectory_stats` per process for the final motion's ``(T, F)`` feature rows
-    (``final``) and for the baselines; points relative to their chain's first joint."""
-    from emotive.models.lgb.bootstrap import LocalGridBootstrap
-    from emotive.models.lgb.model import PROCESSES
+    """:func:`trajectory_stats` per process for the final motion and the baselines.
 
+    :func:`trajectory_stats` per process for the final motion's ``(T, F)`` feature rows
+    (``final``) and for the baselines; points relative to their chain's first joint.
+    """
     out = {}
     for name, (state, _) in PROCESSES.items():
         observed = _relative_to_anchor(model, model.observed, state)
@@ -186,12 +196,12 @@ def process_stats(model, final: np.ndarray, samples: dict, baseline_frames: int,
 
 
 def replay_stats(model, clips: list, rebuilt: dict, motion, novelty) -> dict:
-    """Nearest captured-window distances of the resampled motion (every :data:`REPLAY_HOP`-th
-    window of the final, rebuilt motion), the distinct-clip threshold, the replay level and
-    the guard's report (:mod:`emotive.models.lgb.novelty`)."""
-    from emotive.models.lgb.model import clip_features, effector_columns
-    from emotive.models.lgb.novelty import windows
+    """Nearest captured-window distances of the resampled motion and the guard's report.
 
+    Nearest captured-window distances of the resampled motion (every :data:`REPLAY_HOP`-th
+    window of the final, rebuilt motion), the distinct-clip threshold, the replay level and
+    the guard's report (:mod:`emotive.models.lgb.novelty`).
+    """
     ref = model.novelty
     cols = effector_columns(model.layout)
     rig = model.reference.skeleton
@@ -252,21 +262,21 @@ def folds(clips: list, count: int = JUDGE_FOLDS) -> list[list]:
 
 def heldout_judged(clips: list, rebuilt: dict, seed: int, workers: int
                    ) -> tuple[dict[str, dict[str, np.ndarray]], dict[str, dict[str, float]]]:
-    """Windows of every source, each judged by a classifier that has not seen them (see the
+    """Windows of every source, each judged by a classifier that has not seen them.
+
+    Windows of every source, each judged by a classifier that has not seen them (see the
     module docstring).
 
     Args:
         clips: every clip of the data set.
         rebuilt: clip name -> its IK reconstruction.
+        seed: seed of the held-out resampling draws.
+        workers: IK worker processes.
 
     Returns:
         source -> emotion -> ``(K,)`` probabilities of the intended emotion, and source ->
         emotion -> window accuracy (argmax).
     """
-    from emotive.eval.classifier import ClassifierError, load_default_classifier
-    from emotive.eval.classifier_training import load_split_features, train_classifier
-    from emotive.models.lgb.model import EmotionResampler
-
     config = load_default_classifier().config
     items = [i for split in load_split_features(config).values() for i in split]
     probs: dict[str, dict[str, list]] = {s: {e: [] for e in EMOTIONS}
@@ -304,8 +314,6 @@ def heldout_judged(clips: list, rebuilt: dict, seed: int, workers: int
 
 def anova(p_intended: dict[str, dict[str, np.ndarray]]) -> dict:
     """Mixed ANOVA on P(intended): source between pseudo-observers, emotion within."""
-    from emotive.eval.stats import MissingDependencyError, StatsInputError, mixed_anova
-
     rows = [
         {"observer": f"{source}:{k}", "source": source, "emotion": e, "p_intended": float(v)}
         for source, per_emotion in p_intended.items()
@@ -313,7 +321,7 @@ def anova(p_intended: dict[str, dict[str, np.ndarray]]) -> dict:
         for k, v in enumerate(_spaced(values, OBSERVERS))
     ]
     try:
-        import pandas as pd
+        import pandas as pd  # noqa: PLC0415 (heavy: pandas)
 
         result = mixed_anova(pd.DataFrame(rows), dv="p_intended", within="emotion",
                              between="source", subject="observer")
@@ -336,15 +344,6 @@ def anova(p_intended: dict[str, dict[str, np.ndarray]]) -> dict:
 
 def evaluate(frames: int, seed: int, workers: int) -> dict:
     """The whole study (see the module docstring)."""
-    import torch
-    from rich.progress import track
-
-    from emotive.data.clips import load_clips
-    from emotive.data.splits import split_clips
-    from emotive.eval.classifier import ClassifierError, load_default_classifier
-    from emotive.ik import reconstruct, resolve_chains
-    from emotive.models.lgb.model import EmotionResampler, clip_features
-
     torch.set_num_threads(1)
     classifier = load_default_classifier()
     labels = classifier.labels
@@ -479,6 +478,7 @@ def report_anova(aov: dict, judge: str) -> None:
 
 
 def main() -> None:
+    """Run the evaluation from the command line and write its record."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--frames", type=int, default=30000)
     parser.add_argument("--seed", type=int, default=0)

@@ -1,6 +1,6 @@
 """Evaluation of the MAR style transfer (issue 5, section 3; Xia et al. 2015, section 7).
 
-Usage: ``python bench/eval_mar.py [--out bench/results/eval_mar.json] [--folds N] [--quick]``.
+Usage: ``python -m bench.eval_mar [--out bench/results/eval_mar.json] [--folds N] [--quick]``.
 Needs both Bandai Namco data sets.
 
 1. Leave-one-out cross-validation (paper 7.2) on pairs of one action in two styles: in each
@@ -24,23 +24,36 @@ Needs both Bandai Namco data sets.
    against the target (4-s windows of all outputs pooled), over its accuracy on the real
    dataset-1 walks of that emotion (target ratio >= 0.8).
 3. Foot skate of those outputs (feet pinned, the generator's own contacts) against real walks
-   (contacts detected), by :func:`emotive.eval.metrics.foot_skating` (target: at most the
+   (contacts detected), by :func:`emotive.eval.feet.foot_skating` (target: at most the
    real mean speed + 10 %).
 """
 
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
+import torch
+
+from bench.common import machine_info, write_record
+from emotive.core.roles import resolve_roles
+from emotive.data.clips import load_clips
+from emotive.data.splits import split_clips
+from emotive.eval.classifier import load_default_classifier
+from emotive.eval.feet import foot_skating
+from emotive.features.contacts import foot_contacts
+from emotive.models.mar.build import FRAGMENT, _interp_rows, build_database
+from emotive.models.mar.config import MARConfig, TransferError
+from emotive.models.mar.default_index import clip_examples
+from emotive.models.mar.registration import GaitCycle, body_features, register
+from emotive.models.mar.regression import ridge_ar, standardize, track_rows
+from emotive.models.mar.representation import RigCodec, heading_of_points
+from emotive.models.mar.search import PointCloudSearch
+from emotive.models.mar.transfer import transfer_motion
 
 HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
-
-from common import machine_info, write_record  # noqa: E402
 
 #: (data set, action, input style, output style) of the cross-validation pairs.
 PAIRS = (
@@ -55,9 +68,6 @@ WALKS = ("walk", "walk-left", "walk-right", "walk-back")
 
 
 def _examples(dataset: str, exclude: tuple[str, ...]):
-    from emotive.models.mar.config import MARConfig
-    from emotive.models.mar.database import clip_examples
-
     config = MARConfig(datasets=(dataset,))
     return config, clip_examples(config, exclude)
 
@@ -95,12 +105,6 @@ def _ground_truth(inp, out, db):
     the output's last cycles when the input has more cycles). Other actions: dynamic time
     warping of the whole takes.
     """
-    from emotive.core.roles import resolve_roles
-    from emotive.features.contacts import foot_contacts
-    from emotive.models.mar.database import _interp_rows
-    from emotive.models.mar.registration import GaitCycle, body_features, register
-    from emotive.models.mar.representation import RigCodec, heading_of_points
-
     feats = []
     for m in (inp, out):
         codec = db.codec(RigCodec.for_motion(m))
@@ -131,8 +135,6 @@ def _ground_truth(inp, out, db):
 
 def _global_model(db, inp_vectors, classes_in, out_style):
     """Recursive global ridge AR over all pairs of ``classes_in`` -> ``out_style``."""
-    from emotive.models.mar.regression import ridge_ar, standardize, track_rows
-
     frames = np.flatnonzero(np.isin(db.frame_class, classes_in))
     out_cls = np.array([db.track_of(c, out_style) for c in db.frame_class[frames]])
     y_t, rate, _ = track_rows(db, out_cls, db.tau[frames])
@@ -154,13 +156,6 @@ def _global_model(db, inp_vectors, classes_in, out_style):
 
 def cross_validation(folds: int) -> list[dict]:
     """Section 1 of the module docstring."""
-    from emotive.data.clips import load_clips
-    from emotive.models.mar.config import TransferError
-    from emotive.models.mar.database import build_database
-    from emotive.models.mar.representation import RigCodec
-    from emotive.models.mar.search import PointCloudSearch
-    from emotive.models.mar.transfer import transfer_motion
-
     rows = []
     for dataset, action, s_in, s_out in PAIRS:
         clips = {c.name: c for c in load_clips(dataset, contents=[action])}
@@ -205,13 +200,12 @@ def cross_validation(folds: int) -> list[dict]:
 
 
 def emotion_inputs() -> list:
-    """Neutral walks to transfer: every whole neutral walk of dataset 1 (walk, walk-left,
-    walk-right; its split has no held-out walk) and the neutral walks of dataset 2's held-out
-    (validation and test) split."""
-    from emotive.data.clips import load_clips
-    from emotive.data.splits import split_clips
-    from emotive.models.mar.database import FRAGMENT
+    """Neutral walks to transfer, from both data sets.
 
+    Neutral walks to transfer: every whole neutral walk of dataset 1 (walk, walk-left,
+    walk-right; its split has no held-out walk) and the neutral walks of dataset 2's held-out
+    (validation and test) split.
+    """
     walks = load_clips("bandai-namco-1", contents=list(WALKS))
     median = {a: np.median([c.motion.num_frames for c in walks if c.content == a])
               for a in WALKS}
@@ -223,15 +217,6 @@ def emotion_inputs() -> list:
 
 def emotion_and_skate(max_inputs: int | None) -> dict:
     """Sections 2 and 3 of the module docstring."""
-    from emotive.core.roles import resolve_roles
-    from emotive.data.clips import load_clips
-    from emotive.eval.classifier import load_default_classifier
-    from emotive.eval.metrics import foot_skating
-    from emotive.models.mar.config import MARConfig
-    from emotive.models.mar.database import build_database, clip_examples
-    from emotive.models.mar.search import PointCloudSearch
-    from emotive.models.mar.transfer import transfer_motion
-
     classifier = load_default_classifier()
     walks = load_clips("bandai-namco-1", contents=list(WALKS))
     inputs = emotion_inputs()[:max_inputs]
@@ -285,13 +270,13 @@ def emotion_and_skate(max_inputs: int | None) -> dict:
 
 
 def main() -> None:
+    """Run the evaluation from the command line and write its record."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=HERE / "results" / "eval_mar.json")
     parser.add_argument("--folds", type=int, default=4)
     parser.add_argument("--max-inputs", type=int, default=None)
     args = parser.parse_args()
-    import torch
-    from threadpoolctl import threadpool_limits
+    from threadpoolctl import threadpool_limits  # noqa: PLC0415 (optional threadpoolctl)
 
     torch.set_num_threads(1)
     start = time.time()

@@ -1,6 +1,6 @@
 """Run every benchmark, print a side-by-side table and save JSON under ``bench/results/``.
 
-Usage: ``python bench/run.py [--out bench/results/NAME.json] [--quick]``. Needs the Bandai Namco
+Usage: ``python -m bench.run [--out bench/results/NAME.json] [--quick]``. Needs the Bandai Namco
 data (``EMOTIVE_DATA`` or ``../shared/data``). Numbers are medians of repeated runs; ratios
 compare emotive with a baseline measured in the same run (ratio > 1: emotive does better).
 """
@@ -10,22 +10,24 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import sys
 import time
 from pathlib import Path
 
-HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
+from bench import (
+    bench_bvh,
+    bench_data,
+    bench_fcrbm,
+    bench_features,
+    bench_gait,
+    bench_kinematics,
+    bench_lgb,
+    bench_mar,
+)
+from bench.common import machine_info
+from emotive.data import dataset_dir
+from emotive.io.bvh import read_bvh
 
-import bench_bvh  # noqa: E402
-import bench_data  # noqa: E402
-import bench_fcrbm  # noqa: E402
-import bench_features  # noqa: E402
-import bench_gait  # noqa: E402
-import bench_kinematics  # noqa: E402
-import bench_lgb  # noqa: E402
-import bench_mar  # noqa: E402
-from common import machine_info  # noqa: E402
+HERE = Path(__file__).resolve().parent
 
 
 def _number(value: float) -> str:
@@ -33,13 +35,11 @@ def _number(value: float) -> str:
 
 
 def main() -> None:
+    """Run the benchmarks from the command line and write their record."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=None)
     parser.add_argument("--quick", action="store_true", help="dataset 1 only, fewer repeats")
     args = parser.parse_args()
-
-    from emotive.data import dataset_dir
-    from emotive.io.bvh import read_bvh
 
     d1 = sorted((dataset_dir("bandai-namco-1") / "data").glob("*.bvh"))
     clips = d1 if args.quick else d1 + sorted(

@@ -48,3 +48,7 @@ class PathError(EmotiveError):
 
 class OutputError(EmotiveError):
     """An output file that cannot be written: unknown suffix or missing folder."""
+
+
+class ConfigError(EmotiveError):
+    """A config file or checkpoint that is missing or holds a bad key or value."""

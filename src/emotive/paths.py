@@ -105,8 +105,10 @@ class GroundPath:
         )
 
     def tangent(self, s: np.ndarray | float) -> np.ndarray:
-        """``(..., 2)`` unit direction of travel at ``s``, from a central difference over
-        about one sample spacing either side."""
+        """``(..., 2)`` unit direction of travel at ``s``.
+
+        From a central difference over about one sample spacing either side.
+        """
         h = min(SAMPLE_SPACING, 0.25 * self.length)
         s = self._wrap(s)
         lo = s - h if self.closed else np.maximum(s - h, 0.0)
@@ -120,8 +122,10 @@ class GroundPath:
         return np.arctan2(t[..., 0], t[..., 1])
 
     def curvature(self, s: np.ndarray | float, window: float = 0.2) -> np.ndarray:
-        """``(...)`` signed curvature in 1/m at ``s`` (positive turning left), from the change
-        of heading over ``window`` metres of arc."""
+        """``(...)`` signed curvature in 1/m at ``s`` (positive turning left).
+
+        From the change of heading over ``window`` metres of arc.
+        """
         h = 0.5 * min(window, 0.5 * self.length)
         s = np.asarray(s, dtype=np.float64)
         a = self.heading(s - h)
@@ -252,8 +256,11 @@ def line(length: float = 10.0) -> GroundPath:
 
 
 def circle(radius: float = 2.0) -> GroundPath:
-    """A closed circle of ``radius`` metres, starting at the origin heading +Z and turning to
-    the agent's left (towards +X: facing +Z with Y up, the left hand points to +X)."""
+    """A closed circle of ``radius`` metres, turning to the agent's left.
+
+    A closed circle of ``radius`` metres, starting at the origin heading +Z and turning to
+    the agent's left (towards +X: facing +Z with Y up, the left hand points to +X).
+    """
     _positive(radius, "radius")
     t = np.linspace(0.0, 2.0 * np.pi, _sample_count(2.0 * np.pi * radius))
     pts = np.stack((radius * (1.0 - np.cos(t)), radius * np.sin(t)), axis=1)
@@ -261,8 +268,9 @@ def circle(radius: float = 2.0) -> GroundPath:
 
 
 def figure8(radius: float = 2.0) -> GroundPath:
-    """A closed figure-8 of two loops of about ``radius`` metres, crossing itself at the origin,
-    where it starts heading +Z; the left loop comes first.
+    """A closed figure-8 of two loops of about ``radius`` metres.
+
+    Crossing itself at the origin, where it starts heading +Z; the left loop comes first.
 
     Made by a periodic cubic spline through eight points on each of two circles that touch at
     the origin, so the curvature is continuous: about ``1 / radius`` along the loops, changing
@@ -277,9 +285,12 @@ def figure8(radius: float = 2.0) -> GroundPath:
 
 
 def zigzag(leg: float = 2.5, angle: float = 35.0, count: int = 6) -> GroundPath:
-    """A straight run-up of ``leg / 2`` metres along +Z, then ``count`` legs of ``leg`` metres
+    """A zigzag path: a straight run-up, then legs turning left and right.
+
+    A straight run-up of ``leg / 2`` metres along +Z, then ``count`` legs of ``leg`` metres
     turning ``angle`` degrees left then right of +Z, corners rounded by a cubic spline; starts
-    at the origin heading +Z."""
+    at the origin heading +Z.
+    """
     _positive(leg, "leg")
     if not (0 < angle < 90 and int(count) == count and count >= 1):
         raise PathError(f"zigzag needs 0 < angle < 90 degrees and count >= 1, got {angle}, {count}")
@@ -309,15 +320,19 @@ def _spline(points: np.ndarray, closed: bool, name: str) -> np.ndarray:
 
 
 def waypoints(points: np.ndarray, closed: bool = False, name: str = "waypoints") -> GroundPath:
-    """A smooth path through ``(K, 2)`` waypoints ``(x, z)`` in metres (K >= 2), by a cubic
+    """A smooth path through ``(K, 2)`` waypoints ``(x, z)`` in metres.
+
+    A smooth path through ``(K, 2)`` waypoints ``(x, z)`` in metres (K >= 2), by a cubic
     spline over chord length (natural ends, or periodic when ``closed``). Consecutive repeated
-    points are merged."""
+    points are merged.
+    """
     return GroundPath.from_polyline(_spline(points, closed, name), closed=closed, name=name)
 
 
 def read_waypoints(path: str | os.PathLike) -> GroundPath:
-    """A path from a JSON file: ``[[x, z], ...]`` or ``{"points": [[x, z], ...], "closed":
-    false}``, metres.
+    """A path from a JSON file.
+
+    ``[[x, z], ...]`` or ``{"points": [[x, z], ...], "closed": false}``, metres.
 
     Raises:
         PathError: the file is missing, not JSON, or does not hold such points.

@@ -114,7 +114,7 @@ def test_a_role_map_file_rebuilds_a_renamed_rig(tmp_path):
 
     role_map = tmp_path / "roles.json"
     role_map.write_text(json.dumps({**BANDAI, "root": "pelvis", "l_elbow": "forearm_l"}))
-    result = invoke(renamed, "--out", out, "--role-map", role_map)
+    result = invoke(renamed, "--out", out, "--roles", role_map)
     assert result.exit_code == 0, result.output
     assert read_bvh(out).skeleton.names[0] == "pelvis"
 

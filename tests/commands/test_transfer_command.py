@@ -23,7 +23,7 @@ from cli_helpers import assert_failed_cleanly, invoke_command, nan_copy
 @pytest.fixture(scope="module")
 def synthetic_index(tmp_path_factory) -> Path:
     """The synthetic database (every take but the second) saved as an index file."""
-    from emotive.models.mar.database import build_database
+    from emotive.models.mar.build import build_database
 
     held = tuple(f"synthetic_walk_{s}_2" for s in ("neutral", "proud", "sad"))
     db = build_database(examples(3, skip=held), CONFIG)
@@ -114,10 +114,10 @@ def test_bad_input_fails_in_one_line_without_output(
 
 
 def test_the_index_is_built_in_the_cache_on_request(tmp_path, monkeypatch):
-    from emotive.models.mar import database
+    from emotive.models.mar import database, default_index
 
     monkeypatch.setenv("EMOTIVE_HOME", str(tmp_path / "home"))
-    monkeypatch.setattr(database, "clip_examples", lambda config: examples(2))
+    monkeypatch.setattr(default_index, "clip_examples", lambda config: examples(2))
     result = invoke("--build-index")
     assert result.exit_code == 0, result.output
     built = list((tmp_path / "home" / "mar").glob("index-*.npz"))

@@ -1,4 +1,4 @@
-"""Tests for emotive.core.ops."""
+"""Tests for emotive.core.ops and emotive.core.mirroring."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from emotive.core import ops
+from emotive.core import mirroring, ops
 from emotive.core.motion import Motion
 from emotive.core.skeleton import Skeleton
 from emotive.errors import RigError
@@ -251,7 +251,7 @@ class TestConcatenate:
 class TestMirrorMap:
     def test_bandai_rule(self):
         sk = bandai_skeleton()
-        mm = ops.mirror_map(sk)
+        mm = mirroring.mirror_map(sk)
         names = dict(zip(sk.names, mm.reflection_names, strict=True))
         assert names["joint_Root"] == "x" and names["Hips"] == "y"
         assert {names[n] for n in ("Spine", "Chest", "Neck", "Head")} == {"z"}
@@ -263,7 +263,7 @@ class TestMirrorMap:
         np.testing.assert_array_equal(ends[mm.end_site_pairs], mm.pairs[ends])
 
     def test_cmu_rule_is_plain_x_reflection(self):
-        mm = ops.mirror_map(cmu_skeleton())
+        mm = mirroring.mirror_map(cmu_skeleton())
         assert set(mm.reflection_names) == {"x"}
 
     @pytest.mark.parametrize(
@@ -274,26 +274,26 @@ class TestMirrorMap:
     )
     def test_name_patterns(self, left, right):
         sk = Skeleton(("Root", left, right), [-1, 0, 0], [[0, 1, 0], [0.2, 0, 0], [-0.2, 0, 0]])
-        np.testing.assert_array_equal(ops.mirror_map(sk).pairs, [0, 2, 1])
+        np.testing.assert_array_equal(mirroring.mirror_map(sk).pairs, [0, 2, 1])
 
     def test_explicit_pairs(self):
         sk = Skeleton(("Root", "A", "B"), [-1, 0, 0], [[0, 1, 0], [0.2, 0, 0], [-0.2, 0, 0]])
-        np.testing.assert_array_equal(ops.mirror_map(sk).pairs, [0, 1, 2])
-        np.testing.assert_array_equal(ops.mirror_map(sk, {"A": "B"}).pairs, [0, 2, 1])
+        np.testing.assert_array_equal(mirroring.mirror_map(sk).pairs, [0, 1, 2])
+        np.testing.assert_array_equal(mirroring.mirror_map(sk, {"A": "B"}).pairs, [0, 2, 1])
         with pytest.raises(RigError, match="'C'"):
-            ops.mirror_map(sk, {"A": "C"})
+            mirroring.mirror_map(sk, {"A": "C"})
 
     def test_unpaired_sided_joint(self):
         sk = Skeleton(("Root", "LeftEye"), [-1, 0], [[0, 1, 0], [0.1, 0, 0]])
         with pytest.raises(RigError, match=r"LeftEye \(no RightEye\).*pairs="):
-            ops.mirror_map(sk)
+            mirroring.mirror_map(sk)
 
     def test_non_mirror_hierarchy(self):
         sk = Skeleton(
             ("Root", "Spine", "Arm_L", "Arm_R"), [-1, 0, 0, 1], np.ones((4, 3)) * 0.1
         )
         with pytest.raises(RigError, match="not mirror images"):
-            ops.mirror_map(sk)
+            mirroring.mirror_map(sk)
 
     def test_end_site_mismatch(self):
         sk = Skeleton(
@@ -301,7 +301,7 @@ class TestMirrorMap:
             end_site_parents=[1], end_site_offsets=[[0.1, 0, 0]],
         )
         with pytest.raises(RigError, match="end sites"):
-            ops.mirror_map(sk)
+            mirroring.mirror_map(sk)
 
 
 class TestMirror:
@@ -310,7 +310,7 @@ class TestMirror:
     def test_world_positions_are_reflected(self, rig, seed):
         m = random_motion(rig(), seed=seed)
         out = ops.mirror(m)
-        mm = ops.mirror_map(m.skeleton)
+        mm = mirroring.mirror_map(m.skeleton)
         perm = np.concatenate([mm.pairs, m.skeleton.num_joints + mm.end_site_pairs])
         expected = m.positions_with_end_sites()[:, perm] * REFLECT_X
         np.testing.assert_allclose(out.positions_with_end_sites(), expected, atol=1e-9)
@@ -318,7 +318,7 @@ class TestMirror:
     @pytest.mark.parametrize("rig", [bandai_skeleton, cmu_skeleton])
     def test_world_frames_are_reflected(self, rig):
         m = random_motion(rig(), seed=3)
-        mm = ops.mirror_map(m.skeleton)
+        mm = mirroring.mirror_map(m.skeleton)
         d = np.array([{"-I": [-1, -1, -1], "x": [-1, 1, 1], "y": [1, -1, 1], "z": [1, 1, -1]}[n]
                       for n in mm.reflection_names], dtype=float)
         rot = quaternion_to_matrix(m.global_transforms()[0])[:, mm.pairs]
@@ -351,7 +351,7 @@ class TestMirror:
 
     def test_cmu_local_rule(self):
         m = random_motion(cmu_skeleton(), seed=6)
-        mm = ops.mirror_map(m.skeleton)
+        mm = mirroring.mirror_map(m.skeleton)
         expected = m.rotations[:, mm.pairs] * [1, 1, -1, -1]
         np.testing.assert_array_equal(ops.mirror(m).rotations, expected)
 
@@ -508,7 +508,7 @@ def test_mirror_twice_is_identity_on_real_locomotion_clips(bandai1_dir, bandai2_
         for clip in load_clips(dataset, locomotion=True)[::5]:
             m = clip.motion
             once = ops.mirror(m)
-            mm = ops.mirror_map(m.skeleton)
+            mm = mirroring.mirror_map(m.skeleton)
             # The mirror image: each joint lands where its counterpart's reflection was.
             np.testing.assert_allclose(
                 once.global_positions(), m.global_positions()[:, mm.pairs] * REFLECT_X,

@@ -17,6 +17,9 @@ from emotive.data.emotion import (
     VALENCE_AROUSAL,
     Emotion,
     EmotionSchedule,
+    coerce_blend,
+    coerce_emotion,
+    valence_arousal,
 )
 from emotive.data.registry import REGISTRY
 from emotive.errors import EmotionError
@@ -141,7 +144,9 @@ class TestValenceArousal:
         assert va["neutral"] == (0.0, 0.0)
 
     def test_module_docstring_names_sources_and_estimates(self):
-        doc = em.__doc__
+        from emotive.data import circumplex
+
+        doc = circumplex.__doc__
         assert "Russell" in doc and "1980" in doc and "own estimates" in doc
 
     def test_one_hot_gives_label_point(self):
@@ -260,7 +265,7 @@ class TestSchedule:
             ([{"t": 0, "emotion": "happy", "speed": 2}], r"unknown keys \['speed'\]"),
             ([{"t": 5, "emotion": "happy"}, {"t": 1, "emotion": "sad"}], "sort the keyframes"),
             ([{"t": 0, "emotion": 3}], "mapping or text"),
-            ([{"t": 0, "valence": "x", "arousal": 0}], "must be numbers"),
+            ([{"t": 0, "valence": "x", "arousal": 0}], "is not a number"),
         ],
     )
     def test_errors(self, keys, message):
@@ -291,3 +296,116 @@ class TestSchedule:
         assert a.shape == (50, 4)
         np.testing.assert_allclose(a.sum(1), 1.0)
         assert np.all(a >= 0)
+
+
+LABELS = DEFAULT_LABELS
+finite_va = st.floats(-1.5, 1.5, allow_nan=False)
+
+
+class TestCoerceEmotion:
+    def test_every_form_of_a_label_gives_the_same_schedule(self, tmp_path):
+        path = tmp_path / "k.json"
+        path.write_text(json.dumps([{"t": 0, "emotion": "sad"}]))
+        forms = ["sad", "SAD", {"sad": 1}, Emotion.one_hot("sad"), np.array([0, 1.0, 0, 0]),
+                 EmotionSchedule.constant(Emotion.one_hot("sad")), [{"t": 0, "emotion": "sad"}],
+                 path, str(path)]
+        for form in forms:
+            s = coerce_emotion(form, LABELS)
+            assert s.labels == LABELS and s.times.tolist() == [0.0], form
+            np.testing.assert_array_equal(s.weights, [[0, 1, 0, 0]])
+
+    def test_a_blend_keeps_its_weights(self):
+        s = coerce_emotion("happy=0.7,neutral=0.3", LABELS)
+        np.testing.assert_allclose(s.weights[0], [0.7, 0, 0, 0.3])
+        np.testing.assert_allclose(s.points[0], valence_arousal(s.weights[0], LABELS))
+
+    @given(finite_va, finite_va)
+    def test_a_point_is_kept_exactly_and_blended_by_the_kernel(self, v, a):
+        s = coerce_emotion(f"valence={v!r},arousal={a!r}", LABELS)
+        np.testing.assert_array_equal(s.sample_valence_arousal(3, 30.0), [[v, a]] * 3)
+        np.testing.assert_allclose(s.weights[0],
+                                   Emotion.from_valence_arousal(v, a, LABELS).weights)
+        same = coerce_emotion({"valence": v, "arousal": a}, LABELS)
+        np.testing.assert_array_equal(same.points, s.points)
+
+    @pytest.mark.parametrize(("text", "words"), [
+        ("valence=3,arousal=1", ["valence=3 is outside -1.5..1.5",
+                                 "old FCRBM 1..3 scale, subtract 2: valence=1"]),
+        ("valence=0,arousal=2.5", ["arousal=2.5", "subtract 2: arousal=0.5"]),
+        ("valence=-7,arousal=0", ["valence=-7 is outside", "-1 to 1"]),
+        ("valence=nan,arousal=0", ["not finite"]),
+        ("valence=0.5", ["both valence and arousal"]),
+        ("valence=0.5,arousal=0,happy=1", ["both valence and arousal"]),
+        ("valence=x,arousal=0", ["not a number"]),
+    ])
+    def test_points_outside_the_circumplex_show_the_fix(self, text, words):
+        with pytest.raises(EmotionError) as exc:
+            coerce_emotion(text, LABELS)
+        assert all(w in str(exc.value) for w in words), str(exc.value)
+
+    def test_old_scale_keyframes_show_the_conversion(self):
+        with pytest.raises(EmotionError, match=r"keyframe 1.*subtract 2: valence=1"):
+            coerce_emotion([{"t": 0, "emotion": "sad"}, {"t": 1, "valence": 3, "arousal": 2}],
+                           LABELS)
+
+    def test_huge_finite_weights_normalize(self):
+        for text in ("happy=1e308,sad=1e308", "happy=1.7e308,sad=1.7e308,angry=1e-300"):
+            w = coerce_emotion(text, LABELS).weights[0]
+            assert np.isfinite(w).all() and math.isclose(w.sum(), 1.0)
+        np.testing.assert_allclose(coerce_emotion("happy=1e308,sad=1e308", LABELS).weights[0],
+                                   [0.5, 0.5, 0, 0])
+
+    @given(st.lists(st.floats(0, 1e308), min_size=4, max_size=4).filter(lambda w: any(w)))
+    def test_any_finite_non_negative_weights_normalize(self, weights):
+        w = coerce_emotion(np.array(weights), LABELS).weights[0]
+        assert np.isfinite(w).all() and math.isclose(w.sum(), 1.0, rel_tol=1e-12)
+
+    def test_labels_the_model_lacks_must_weigh_zero(self):
+        wide = (*LABELS, "proud")
+        s = coerce_emotion(Emotion.parse("happy=1", wide), LABELS)
+        np.testing.assert_array_equal(s.weights, [[1, 0, 0, 0]])
+        with pytest.raises(EmotionError, match="no emotion 'proud'"):
+            coerce_emotion(Emotion.parse("proud=1", wide), LABELS)
+        with pytest.raises(EmotionError, match="unknown emotion 'furious'"):
+            coerce_emotion("furious", LABELS)
+
+    def test_a_bad_type_or_file_is_an_error(self, tmp_path):
+        with pytest.raises(EmotionError, match="an emotion must be"):
+            coerce_emotion(3.5, LABELS)
+        with pytest.raises(EmotionError, match="cannot be read"):
+            coerce_emotion(tmp_path / "missing.json", LABELS)
+
+    def test_a_blend_is_constant(self):
+        assert coerce_blend("valence=0,arousal=0", LABELS).dominant == "neutral"
+        np.testing.assert_array_equal(coerce_blend(Emotion.one_hot("sad"), LABELS).weights,
+                                      [0, 1, 0, 0])
+
+
+class TestValenceArousalTrack:
+    def test_point_keyframes_exactly_and_label_keyframes_by_their_mean(self):
+        s = coerce_emotion([{"t": 0, "valence": 0.9, "arousal": -0.4},
+                            {"t": 1, "emotion": "angry"}, {"t": 1, "valence": 1.2,
+                                                          "arousal": 1.4}], LABELS)
+        track = s.sample_valence_arousal(61, 30.0)
+        assert track.shape == (61, 2)
+        np.testing.assert_array_equal(track[0], [0.9, -0.4])
+        angry = [VALENCE_AROUSAL["angry"].valence, VALENCE_AROUSAL["angry"].arousal]
+        np.testing.assert_allclose(track[15], (np.array([0.9, -0.4]) + angry) / 2)
+        np.testing.assert_array_equal(track[30:], [[1.2, 1.4]] * 31)
+        # The label weights of a point stay the kernel blend.
+        np.testing.assert_allclose(s.weights[0],
+                                   Emotion.from_valence_arousal(0.9, -0.4, LABELS).weights)
+
+    @given(st.lists(st.tuples(st.floats(0, 10), finite_va, finite_va), min_size=1, max_size=5))
+    def test_the_track_stays_between_its_keyframes(self, keys):
+        keys = sorted(keys)
+        s = coerce_emotion([{"t": t, "valence": v, "arousal": a} for t, v, a in keys], LABELS)
+        track = s.sample_valence_arousal(40, 3.0)
+        points = np.array([[v, a] for _, v, a in keys])
+        assert np.all(track >= points.min(0) - 1e-12) and np.all(track <= points.max(0) + 1e-12)
+
+    def test_relabel_keeps_the_track(self):
+        s = coerce_emotion("valence=0.3,arousal=0.2", ALL_LABELS)
+        moved = s.relabel(ALL_LABELS[::-1])
+        np.testing.assert_array_equal(moved.points, s.points)
+        np.testing.assert_array_equal(moved.weights[:, ::-1], s.weights)

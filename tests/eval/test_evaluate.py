@@ -17,13 +17,13 @@ from emotive.eval.classifier import load_default_classifier
 from emotive.eval.evaluate import EvaluationError, Subject, resolve_subject, run_suites
 from emotive.eval.sources import (
     EvaluatedMotion,
-    GenerationRequest,
     SourceError,
     from_generator,
     read_folder,
     standard_requests,
 )
 from emotive.io.bvh import read_bvh
+from emotive.models.api import Capabilities, Generated, GenerationRequest
 
 #: The classifier's held-out test clips (see its model card).
 TEST_CLIPS = ("walk-left_normal_001", "walk-right_sad_001", "walk_angry_002", "walk_happy_002",
@@ -139,13 +139,18 @@ class ReplayGenerator:
     """Plays a real clip of the request's first intended emotion (a stand-in generator)."""
 
     name = "replay"
+    labels = DEFAULT_LABELS
+    capabilities = Capabilities(paths=True, blends=True, schedules=True, valence_arousal=False,
+                                primer=False, max_seconds=60.0)
 
     def __init__(self, clips: dict[str, object]) -> None:
         self.clips = clips
 
-    def generate(self, request: GenerationRequest):
+    def generate(self, request: GenerationRequest, progress: bool = False) -> Generated:
         label = request.schedule.labels[int(request.schedule.weights[0].argmax())]
-        return self.clips[label]
+        motion = self.clips[label]
+        emotion = request.schedule.sample(motion.fps, num_frames=motion.num_frames)
+        return Generated(motion, emotion, request.schedule.labels, request.path)
 
 
 @pytest.mark.data
@@ -267,25 +272,110 @@ def test_quality_suite_jerk_and_skate_against_real(folder, classifier):
     assert all(r["jerk"] > 0 and r["skate_speed"] >= 0 for r in result["items"])
 
 
-def test_the_committed_models_resolve_to_predictors_and_a_generator():
-    from emotive.eval.evaluate import MODELS, baseline_path
+def test_registered_models_resolve_by_their_kinds():
     from emotive.models.gait.model import default_checkpoint_path
 
-    gait = resolve_subject("emotive-gait")
-    assert gait.provides() == {"motions", "predictor", "generator"}
-    assert gait.predictor.name == "Ours"
+    gait = resolve_subject("gait")
+    assert gait.provides() == {"motions", "paths", "transitions", "predictor", "generator"}
+    assert gait.predictor.name == "Ours" and gait.name == "gait"
+    assert resolve_subject("gait-no-root-loss").predictor.name == "gait-no-root-loss"
     assert resolve_subject("quaternet").provides() == {"predictor"}
+    assert resolve_subject("zero-velocity").provides() == {"predictor"}
+    # The FCRBM follows no path; the LGB makes neither paths nor transitions.
+    assert resolve_subject("fcrbm").provides() == {"motions", "transitions", "generator"}
+    assert resolve_subject("lgb", workers=1).provides() == {"motions", "generator"}
     assert resolve_subject(str(default_checkpoint_path())).provides() == gait.provides()
-    for name in MODELS:
-        if name != "emotive-gait":
-            assert baseline_path(name).exists(), name
-    with pytest.raises(EvaluationError, match="emotive-gait"):
+    with pytest.raises(EvaluationError, match=r"'fcrmb' \(did you mean 'fcrbm'\?\)"):
+        resolve_subject("fcrmb")
+    with pytest.raises(EvaluationError, match="gait, gait-no-affective"):
         resolve_subject("no-such-model")
+
+
+def test_suites_follow_the_capabilities():
+    fcrbm = resolve_subject("fcrbm")
+    with pytest.raises(EvaluationError, match="suite 'path' needs motions along paths"):
+        run_suites(fcrbm, "path")
+    lgb = resolve_subject("lgb")
+    with pytest.raises(EvaluationError, match="needs motions whose emotion changes"):
+        run_suites(lgb, "transition")
+
+
+def test_requests_are_reduced_to_what_a_generator_honours():
+    from emotive.eval.sources import requests_for
+    from emotive.models.fcrbm.adapter import CAPABILITIES as FCRBM
+    from emotive.models.lgb.adapter import CAPABILITIES as LGB
+
+    requests = standard_requests(seconds=4.0)
+    lgb = requests_for(LGB, requests)
+    assert [r.name for r in lgb] == list(DEFAULT_LABELS)
+    assert all(r.path is None for r in lgb)
+    fcrbm = requests_for(FCRBM, requests)
+    assert [r.name for r in fcrbm] == [r.name for r in requests]
+    assert all(r.path is None and r.seconds == 4.0 for r in fcrbm)
+
+
+def test_fcrbm_quality_report_through_the_api(tmp_path, classifier):
+    from emotive.eval.report import write_report
+
+    subject = resolve_subject("fcrbm")
+    requests = standard_requests(classifier.labels, seconds=2.0)[:2]
+    results, info = run_suites(subject, "quality", classifier, requests=requests)
+    write_report(tmp_path / "out", subject.name, results, info)
+    metrics = json.loads((tmp_path / "out" / "metrics.json").read_text())
+    assert [r["name"] for r in metrics["suites"]["quality"]["items"]] == ["happy", "sad"]
+    assert info["model"] == "fcrbm"
+
+
+def test_the_evaluate_command_on_the_fcrbm(tmp_path):
+    import typer
+    from typer.testing import CliRunner
+
+    from emotive.commands.evaluate import SUITE_NAMES, evaluate
+    from emotive.eval.evaluate import SUITES
+    from emotive.models.registry import REGISTRY
+
+    assert SUITE_NAMES == tuple(SUITES)
+    app = typer.Typer()
+    app.command()(evaluate)
+    app.command("unused")(lambda: None)
+    helped = CliRunner().invoke(app, ["evaluate", "--help"], terminal_width=400)
+    for name in (*REGISTRY, *SUITE_NAMES):
+        assert name in helped.output
+    out = tmp_path / "report"
+    run = CliRunner().invoke(app, ["evaluate", "--model", "fcrbm", "--suite", "quality",
+                                   "--out", str(out), "--seconds", "2", "--option",
+                                   "gibbs=None"])
+    assert run.exit_code == 0, run.output
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert len(metrics["suites"]["quality"]["items"]) == 6
+
+
+class Restyle:
+    """A stand-in transfer model: the input, relabelled."""
+
+    name = "restyle"
+    labels = ("happy", "sad")
+
+    def transfer(self, motion, style, progress=False) -> Generated:
+        return Generated(motion, style.sample(motion.fps, num_frames=motion.num_frames),
+                         style.labels)
+
+
+def test_a_transfer_model_is_judged_on_clips_in_each_label(random_motion, classifier):
+    from emotive.eval.evaluate import transfer_subject
+
+    clip = random_motion(frames=40)
+    item = EvaluatedMotion("clip", clip, np.tile([0, 0, 0, 1.0], (40, 1)), DEFAULT_LABELS)
+    subject = transfer_subject(Restyle(), DEFAULT_LABELS, clips=lambda: [item])
+    assert subject.provides() == {"motions"}
+    motions = subject.read_motions()
+    assert [m.name for m in motions] == ["clip -> happy", "clip -> sad"]
+    np.testing.assert_array_equal(motions[1].intended, np.tile([0, 1.0], (40, 1)))
 
 
 @pytest.mark.data
 def test_the_gait_network_clears_table1_and_beats_quaternet(bandai1_dir, classifier):
-    results, _ = run_suites(resolve_subject("emotive-gait"), "table1", classifier)
+    results, _ = run_suites(resolve_subject("gait"), "table1", classifier)
     ours = results["table1"]["results"]["10 fps"]["predictors"]["Ours"]["overall"]
     base, _ = run_suites(resolve_subject("quaternet"), "table1", classifier)
     quaternet = base["table1"]["results"]["10 fps"]["predictors"]["QuaterNet"]["overall"]
@@ -293,3 +383,13 @@ def test_the_gait_network_clears_table1_and_beats_quaternet(bandai1_dir, classif
     # the QuaterNet baseline in pose and rotation error.
     assert ours["pose"] <= 0.12
     assert ours["pose"] < quaternet["pose"] and ours["rotation"] < quaternet["rotation"]
+
+
+def test_the_classifier_and_mar_are_evaluable_subjects():
+    subject = resolve_subject("classifier")
+    assert subject.provides() == {"motions"} and subject.classifier is not None
+    from emotive.models.registry import REGISTRY
+
+    for name in REGISTRY:
+        if name not in ("mar", "classifier"):
+            assert resolve_subject(name).provides(), name

@@ -1,8 +1,11 @@
-"""Command-line options shared by several commands, so that each has one name and help text,
-and the shared body of the training commands (:func:`run_training`).
+"""Command-line options shared by several commands, and the training commands' body.
+
+Command-line options shared by several commands, each defined once with one name and help
+text, and the shared body of the training commands (:func:`run_training`).
 
 Use the options as parameter annotations with the command's own default, e.g.
-``config: ConfigOpt = Path("configs/gait.toml")``.
+``config: ConfigOpt = Path("configs/gait.toml")``. Numeric ranges never clamp: a value out of
+range is a one-line error (:func:`emotive.cli.main`).
 """
 
 from __future__ import annotations
@@ -13,6 +16,63 @@ from typing import Annotated, Any
 
 import typer
 
+
+def positive(value: float | None) -> float | None:
+    """Option callback: a finite number above 0 (or the option left out).
+
+    Raises:
+        typer.BadParameter: zero, negative, NaN or infinite.
+    """
+    import math
+
+    if value is not None and not (math.isfinite(value) and value > 0):
+        raise typer.BadParameter(f"{value:g} is not a finite number above 0.")
+    return value
+
+
+def out_option(what: str) -> Any:
+    """``--out``/``-o`` with the command's own description of the file.
+
+    E.g. ``Annotated[Path, out_option("Output .bvh, on the input's rig.")]``.
+    """
+    return typer.Option("--out", "-o", help=what, show_default=False)
+
+
+RolesOpt = Annotated[
+    str | None,
+    typer.Option("--roles", help='Role map of the input rig: "bandai", "cmu" or a JSON file '
+                 '{"role": "JointName", ...}; default: try the built-in maps.',
+                 show_default=False),
+]
+SeedOpt = Annotated[
+    int, typer.Option("--seed", help="Random seed: the same seed gives the same output.")
+]
+SecondsOpt = Annotated[
+    float, typer.Option("--seconds", help="Length of the output, seconds (above 0).",
+                        callback=positive),
+]
+PreviewOpt = Annotated[
+    Path | None,
+    typer.Option("--preview", help="Also write a stick-figure video: .mp4 or .gif.",
+                 show_default=False),
+]
+EmotionOpt = Annotated[
+    str | None,
+    typer.Option("--emotion", "-e", help='A label "sad", a blend "happy=0.7,neutral=0.3", a '
+                 'point "valence=0.5,arousal=-0.2" (-1..1) or a JSON keyframe file '
+                 "(default neutral).", show_default=False),
+]
+EmotionScheduleOpt = Annotated[
+    Path | None,
+    typer.Option("--emotion-schedule", help='JSON keyframes, e.g. [{"t": 0, "emotion": '
+                 '"angry"}, {"t": 10, "valence": 0.8, "arousal": 0.2}] (seconds).',
+                 show_default=False),
+]
+PrimerOpt = Annotated[
+    Path | None,
+    typer.Option("--primer", help="Start from this BVH clip of the model's rig instead of the "
+                 "model's own start.", show_default=False),
+]
 ConfigOpt = Annotated[
     Path, typer.Option("--config", help=r"TOML file with \[model] and \[train] sections.")
 ]
@@ -22,14 +82,15 @@ TrainOutOpt = Annotated[
 ResumeOpt = Annotated[bool, typer.Option("--resume", help="Continue from the folder's last.pt.")]
 EpochsOpt = Annotated[
     int | None,
-    typer.Option(help=r"Epochs in all (default: the config's \[train] epochs).", min=1,
-                 show_default=False),
+    typer.Option("--epochs", help=r"Epochs in all (default: the config's \[train] epochs).",
+                 min=1, show_default=False),
 ]
-PreviewOpt = Annotated[
-    Path | None,
-    typer.Option("--preview", help="Also write a stick-figure video: .mp4 or .gif.",
-                 show_default=False),
-]
+
+
+def deprecated(old: str, new: str) -> None:
+    """Print the one deprecation line of an old command spelling on stderr."""
+    typer.echo(f"deprecated: `emotive {old}` is now `emotive {new}`; the old spelling goes in "
+               "0.3", err=True)
 
 
 def run_training(load: Callable[[Path], tuple[Any, Any]], train: Callable[..., Any],
@@ -39,7 +100,11 @@ def run_training(load: Callable[[Path], tuple[Any, Any]], train: Callable[..., A
     Args:
         load: reads ``config`` into ``(model config, training settings)``.
         train: ``train(model_config, settings, progress=, out_dir=, resume=, seed=)``.
-        config, out, resume, seed, epochs: the command's options.
+        config: the command's ``--config``.
+        out: the command's ``--out``.
+        resume: the command's ``--resume``.
+        seed: the command's ``--seed``.
+        epochs: the command's ``--epochs``; ``None`` keeps the config's.
 
     Returns:
         What ``train`` returns.

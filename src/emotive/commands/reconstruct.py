@@ -15,12 +15,16 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
+from emotive.commands.options import PreviewOpt, RolesOpt, out_option
+
 if TYPE_CHECKING:
     from emotive.ik import IKResult
 
 
 def summary(result: IKResult, fps: float, verb: str = "rebuilt") -> str:
-    """One line: frames, clip and solve seconds, per-chain target residual, frames left off
+    """One summary line of a reconstruction.
+
+    One line: frames, clip and solve seconds, per-chain target residual, frames left off
     target after the solver's retries, and clamped targets.
 
     Args:
@@ -60,28 +64,9 @@ def summary(result: IKResult, fps: float, verb: str = "rebuilt") -> str:
 
 def reconstruct(
     input: Annotated[Path, typer.Argument(help="BVH clip to rebuild.", show_default=False)],
-    out: Annotated[
-        Path,
-        typer.Option("--out", "-o", help="Output .bvh, on the input's rig.", show_default=False),
-    ],
-    role_map: Annotated[
-        str | None,
-        typer.Option(
-            "--role-map",
-            "--roles",
-            help='Role map: "bandai", "cmu" or a JSON file {"role": "JointName", ...}; '
-            "default: try the built-in maps.",
-            show_default=False,
-        ),
-    ] = None,
-    preview: Annotated[
-        Path | None,
-        typer.Option(
-            "--preview",
-            help="Also write a stick-figure video of the rebuilt clip: .mp4 or .gif.",
-            show_default=False,
-        ),
-    ] = None,
+    out: Annotated[Path, out_option("Output .bvh, on the input's rig.")],
+    role_map: RolesOpt = None,
+    preview: PreviewOpt = None,
 ) -> None:
     """Rebuild a clip from its own pelvis, end-effector and elbow trajectories by IK."""
     from rich.console import Console
@@ -90,11 +75,11 @@ def reconstruct(
     from emotive.ik import IKError
     from emotive.ik import reconstruct as ik_reconstruct
     from emotive.io.bvh import read_bvh, write_bvh
-    from emotive.models.gait.outputs import check_output
+    from emotive.io.outputs import PREVIEW_SUFFIXES, check_output
 
     check_output(out, (".bvh",), "--out")
     if preview is not None:
-        check_output(preview, (".mp4", ".gif"), "--preview")
+        check_output(preview, PREVIEW_SUFFIXES, "--preview")
     motion = read_bvh(input)
     if motion.num_frames == 0:
         raise BVHError(

@@ -10,12 +10,12 @@ from typing import Annotated
 
 import typer
 
+from emotive.commands.options import out_option, positive
+
 
 def preview(
     file: Annotated[Path, typer.Argument(help="BVH file.", show_default=False)],
-    out: Annotated[
-        Path, typer.Option("--out", "-o", help="Output video: .mp4 or .gif.", show_default=False)
-    ],
+    out: Annotated[Path, out_option("Output video: .mp4 or .gif.")],
     path: Annotated[
         str | None,
         typer.Option("--path", help="Also draw a ground path: line, circle, figure8, zigzag or "
@@ -26,7 +26,8 @@ def preview(
     ] = None,
     fps: Annotated[
         float | None,
-        typer.Option("--fps", help="Output frame rate (default: the clip's, at most 30)."),
+        typer.Option("--fps", help="Output frame rate (default: the clip's, at most 30).",
+                     callback=positive, max=240.0, show_default=False),
     ] = None,
     width: Annotated[int, typer.Option(help="Width in pixels.", min=64, max=3840)] = 640,
     height: Annotated[int, typer.Option(help="Height in pixels.", min=64, max=2160)] = 480,

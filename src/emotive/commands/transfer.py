@@ -16,23 +16,23 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from emotive.commands.options import PreviewOpt
+from emotive.commands.options import PreviewOpt, RolesOpt, out_option
 
 if TYPE_CHECKING:
     from emotive.models.mar.database import MARDatabase
 
 
 def open_index(index: Path | None, build: bool, force: bool) -> tuple[MARDatabase, Path]:
-    """The index at ``index`` (default location when None), built first if missing or if
-    ``force``; a progress bar on stderr while building."""
+    """The style-transfer index at ``index``, built first if needed.
+
+    The index at ``index`` (default location when None), built first if missing or if
+    ``force``; a progress bar on stderr while building.
+    """
     from rich.console import Console
 
     from emotive.models.mar.config import MARConfig
-    from emotive.models.mar.database import (
-        MARDatabase,
-        build_default_index,
-        default_index_path,
-    )
+    from emotive.models.mar.database import MARDatabase
+    from emotive.models.mar.default_index import build_default_index, default_index_path
 
     config = MARConfig()
     path = index if index is not None else default_index_path(config)
@@ -54,10 +54,7 @@ def transfer(
         typer.Option("--style", help='Output style or blend, e.g. "proud=0.6,angry=0.4".',
                      show_default=False),
     ] = None,
-    out: Annotated[
-        Path | None,
-        typer.Option("--out", "-o", help="Output .bvh, on the input's rig.", show_default=False),
-    ] = None,
+    out: Annotated[Path | None, out_option("Output .bvh, on the input's rig.")] = None,
     action: Annotated[
         str | None,
         typer.Option("--action", help="The input's action if known (walk, run, ...).",
@@ -71,7 +68,7 @@ def transfer(
     rho: Annotated[
         float | None,
         typer.Option("--rho", help="Content kept for inputs unlike the data: 0 (pure style) "
-                     "to 1; default 0.7.", show_default=False),
+                     "to 1; default 0.7.", min=0.0, max=1.0, show_default=False),
     ] = None,
     style_schedule: Annotated[
         Path | None,
@@ -79,11 +76,7 @@ def transfer(
                      '{"t": 3, "emotion": "proud"}] (seconds of the input).', show_default=False),
     ] = None,
     preview: PreviewOpt = None,
-    role_map: Annotated[
-        str | None,
-        typer.Option("--roles", "--role-map", help='Role map of the input rig: "bandai", "cmu" '
-                     'or a JSON file {"role": "JointName", ...}.', show_default=False),
-    ] = None,
+    role_map: RolesOpt = None,
     index: Annotated[
         Path | None,
         typer.Option("--index", help="Index file (default: in $EMOTIVE_HOME/mar, built on "
@@ -97,14 +90,17 @@ def transfer(
         bool, typer.Option("--force", help="Rebuild the index even if it exists.")
     ] = False,
 ) -> None:
-    """Translate a clip into another style, frame by frame (online local mixtures of
-    autoregressive models)."""
+    """Translate a clip into another style, frame by frame.
+
+    Translate a clip into another style, frame by frame (online local mixtures of
+    autoregressive models).
+    """
     from rich.console import Console
 
     from emotive.data.emotion import EmotionSchedule
     from emotive.errors import BVHError, OutputError
     from emotive.io.bvh import read_bvh, write_bvh
-    from emotive.models.gait.outputs import check_output
+    from emotive.io.outputs import PREVIEW_SUFFIXES, check_output
     from emotive.models.mar.config import TransferError
     from emotive.models.mar.transfer import parse_style, transfer_motion
 
@@ -120,7 +116,7 @@ def transfer(
         raise OutputError(f"{input}: give --out OUT.bvh for the translated clip")
     check_output(out, (".bvh",), "--out")
     if preview is not None:
-        check_output(preview, (".mp4", ".gif"), "--preview")
+        check_output(preview, PREVIEW_SUFFIXES, "--preview")
     if (style is None) == (style_schedule is None):
         raise TransferError(f"{input}: give exactly one of --style and --style-schedule")
     motion = read_bvh(input)

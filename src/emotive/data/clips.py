@@ -24,6 +24,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from rich.console import Console
+from rich.progress import track
 
 import emotive
 from emotive.core.motion import Motion
@@ -32,6 +34,7 @@ from emotive.data.emotion import style_to_label
 from emotive.data.registry import DatasetInfo, get_dataset
 from emotive.data.store import dataset_dir, emotive_home
 from emotive.errors import DataError
+from emotive.io import bvh
 from emotive.io.atomic import atomic_output
 
 log = logging.getLogger(__name__)
@@ -228,7 +231,9 @@ def list_clips(
 
     Args:
         name: registry name, e.g. ``"bandai-namco-1"``.
-        locomotion, contents, styles: filters, see :func:`select_clips`.
+        locomotion: filter, see :func:`select_clips`.
+        contents: filter, see :func:`select_clips`.
+        styles: filter, see :func:`select_clips`.
     """
     info = get_dataset(name)
     clips = read_clip_index(dataset_dir(info), info)
@@ -266,15 +271,13 @@ def preprocessed_path(name: str | DatasetInfo, unit: str = "auto") -> Path:
 def _preprocess(
     info: DatasetInfo, clips: list[ClipInfo], unit: str, dest: Path, progress: bool
 ) -> None:
-    """Parse every clip (with a progress bar on stderr if asked) and store the arrays in
-    ``dest`` atomically."""
-    from rich.console import Console
-    from rich.progress import track
+    """Parse every clip and store the arrays in ``dest`` atomically.
 
-    from emotive.io.bvh import read_bvh
-
+    Parse every clip (with a progress bar on stderr if asked) and store the arrays in
+    ``dest`` atomically.
+    """
     motions = [
-        read_bvh(c.path, unit=unit)
+        bvh.read_bvh(c.path, unit=unit)  # module attribute: tests patch it
         for c in track(clips, description=f"parsing {info.name} (once)", disable=not progress,
                        console=Console(stderr=True), transient=True)
     ]
@@ -332,8 +335,11 @@ def _preprocessed(
 def frame_counts(
     name: str | DatasetInfo, unit: str = "auto", progress: bool = False
 ) -> dict[str, int]:
-    """``{clip name: frames}`` of every clip, from the preprocessing cache (made on first use,
-    with a progress bar if ``progress``)."""
+    """``{clip name: frames}`` of every clip, from the preprocessing cache.
+
+    ``{clip name: frames}`` of every clip, from the preprocessing cache (made on first use,
+    with a progress bar if ``progress``).
+    """
     info = get_dataset(name)
     path, clips = _preprocessed(info, unit, progress)
     with np.load(path, allow_pickle=False) as data:
@@ -357,7 +363,9 @@ def load_clips(
 
     Args:
         name: registry name, e.g. ``"bandai-namco-1"``.
-        locomotion, contents, styles: filters, see :func:`select_clips`.
+        locomotion: filter, see :func:`select_clips`.
+        contents: filter, see :func:`select_clips`.
+        styles: filter, see :func:`select_clips`.
         unit: file length unit passed to :func:`emotive.io.bvh.read_bvh`.
         progress: show a progress bar on stderr while the first call parses the files.
 

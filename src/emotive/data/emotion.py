@@ -1,35 +1,19 @@
-"""The project's one emotion model: weight vectors over named labels, valence/arousal, schedules.
+"""The project's one emotion model: weights over labels, schedules and coercion.
+
+The project's one emotion model: weight vectors over named labels, schedules over time,
+and :func:`coerce_emotion`, the one way every model turns a user's emotion into its input.
 
 An emotion is a normalized, non-negative weight vector ``(C,)`` over an ordered tuple of
-``C`` labels. The default labels are the four emotions of the main paper (Bhattacharya et al.
-2020): ``happy``, ``sad``, ``angry``, ``neutral``. Every other style of the Bandai Namco data
-sets is available as an extra label; the Bandai style ``normal`` is the label ``neutral``.
-Models fix their labels in their config; every function takes ``labels`` for that reason.
+``C`` labels (:mod:`emotive.data.circumplex`, whose names this module re-exports: the labels,
+their valence/arousal points and the conversions between the two). Models fix their labels in
+their config; every function takes ``labels`` for that reason.
 
 Text form (command line, JSON): ``"happy=0.7,neutral=0.3"`` or a single name ``"sad"``; weights
-are normalized to sum to one. Unknown names, negative, NaN or infinite weights and all-zero
-vectors raise :class:`~emotive.errors.EmotionError`.
-
-Valence and arousal
--------------------
-:data:`VALENCE_AROUSAL` places every label in the circumplex plane, valence (unpleasant -1 ..
-+1 pleasant) on the first axis and arousal (sleepy -1 .. +1 activated) on the second. Sources:
-
-* ``happy``, ``angry``, ``sad``, ``tired``: the direction of the same word in Russell's
-  circumplex (J. A. Russell, "A circumplex model of affect", J. Pers. Soc. Psychol. 39(6),
-  1161-1178, 1980; direct circular scaling of 28 affect words), on the unit circle:
-  ``(cos θ, sin θ)`` with θ = 7.8° (happy), 99.0° (angry), 207.5° (sad), 267.7° (tired), as
-  the angles are commonly tabulated from that paper.
-* ``neutral``: the centre of the circumplex ``(0, 0)`` by definition.
-* every other entry (``proud``, ``not-confident``, ``masculinity``/``masculine``,
-  ``feminine``, ``childish``, ``old``/``elderly``, ``active``, ``musical``, ``giant``,
-  ``chimpira``, ``exhausted``, ``youthful``): **the project's own estimates**, placed by hand
-  from the meaning of the word and the Bandai Namco clips; they are not measured ratings.
-  Synonyms across the two data sets share a point.
-
-An emotion vector maps to valence/arousal as the weighted mean of its labels' points. The way
-back blends the labels by a Gaussian kernel on the distance to their points,
-``w_c ∝ exp(-|p - p_c|² / (2 width²))``, so a label's own point gives mostly that label.
+are normalized to sum to one. ``"valence=0.5,arousal=-0.2"`` is a point of the -1..1
+circumplex (up to :data:`~emotive.data.circumplex.VA_LIMIT` exaggerates), blended over the
+labels by the Gaussian kernel of :func:`~emotive.data.circumplex.weights_from_valence_arousal`.
+Unknown names, negative, NaN or infinite weights and all-zero vectors raise
+:class:`~emotive.errors.EmotionError`.
 
 Schedules
 ---------
@@ -37,14 +21,15 @@ Schedules
 {"t": 10, "emotion": "happy=1"}]`` (seconds; a keyframe may give ``"valence"`` and ``"arousal"``
 instead of ``"emotion"``), interpolated linearly, held constant before the first and after the
 last keyframe, renormalized per frame and sampled at any frame rate to ``(T, C)``. Two keyframes
-at the same time make an instant switch.
+at the same time make an instant switch. Beside the label weights it keeps a valence/arousal
+track ``(K, 2)``: exactly the given point for a valence/arousal keyframe, the weighted mean of
+the label points for a label keyframe (:meth:`EmotionSchedule.sample_valence_arousal`).
 
 Shapes: ``T`` frames, ``C`` labels, ``K`` keyframes, ``N`` query points.
 """
 
 from __future__ import annotations
 
-import difflib
 import itertools
 import json
 import math
@@ -55,183 +40,50 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy.special import softmax
 
+from emotive.data.circumplex import (
+    ALIASES,
+    ALL_LABELS,
+    DEFAULT_LABELS,
+    EXTRA_LABELS,
+    VA_KERNEL_WIDTH,
+    VA_LIMIT,
+    VALENCE_AROUSAL,
+    AffectPoint,
+    canonical_label,
+    check_labels,
+    check_valence_arousal,
+    label_points,
+    normalize_weights,
+    style_to_label,
+    unknown_label_message,
+    valence_arousal,
+    weights_from_valence_arousal,
+)
 from emotive.errors import EmotionError
 
-#: The main paper's four emotions, in model order.
-DEFAULT_LABELS: tuple[str, ...] = ("happy", "sad", "angry", "neutral")
-#: Every other style of the Bandai Namco data sets (1 and 2), as extra labels.
-EXTRA_LABELS: tuple[str, ...] = (
-    "proud", "not-confident", "masculinity", "feminine", "childish", "old", "tired", "active",
-    "musical", "giant", "chimpira", "elderly", "exhausted", "masculine", "youthful",
-)
-ALL_LABELS: tuple[str, ...] = DEFAULT_LABELS + EXTRA_LABELS
-#: Other names accepted for a label (data set style names).
-ALIASES: dict[str, str] = {"normal": "neutral"}
-
-
-@dataclass(frozen=True)
-class AffectPoint:
-    """A label's place in the valence/arousal plane.
-
-    Attributes:
-        valence: -1 (unpleasant) .. 1 (pleasant).
-        arousal: -1 (sleepy) .. 1 (activated).
-        source: ``"russell1980"``, ``"definition"`` or ``"estimate"`` (the project's own).
-        angle_deg: the word's angle in Russell's circumplex, for ``"russell1980"`` entries.
-    """
-
-    valence: float
-    arousal: float
-    source: str
-    angle_deg: float | None = None
-
-
-def _russell(angle_deg: float) -> AffectPoint:
-    theta = math.radians(angle_deg)
-    return AffectPoint(round(math.cos(theta), 4), round(math.sin(theta), 4), "russell1980",
-                       angle_deg)
-
-
-#: Valence/arousal of every label; see the module docstring for the sources.
-VALENCE_AROUSAL: dict[str, AffectPoint] = {
-    "happy": _russell(7.8),
-    "sad": _russell(207.5),
-    "angry": _russell(99.0),
-    "neutral": AffectPoint(0.0, 0.0, "definition"),
-    "tired": _russell(267.7),
-    "proud": AffectPoint(0.60, 0.40, "estimate"),
-    "not-confident": AffectPoint(-0.45, -0.25, "estimate"),
-    "masculinity": AffectPoint(0.10, 0.35, "estimate"),
-    "masculine": AffectPoint(0.10, 0.35, "estimate"),
-    "feminine": AffectPoint(0.25, 0.05, "estimate"),
-    "childish": AffectPoint(0.55, 0.60, "estimate"),
-    "youthful": AffectPoint(0.50, 0.45, "estimate"),
-    "old": AffectPoint(-0.15, -0.55, "estimate"),
-    "elderly": AffectPoint(-0.15, -0.55, "estimate"),
-    "exhausted": AffectPoint(-0.45, -0.85, "estimate"),
-    "active": AffectPoint(0.45, 0.80, "estimate"),
-    "musical": AffectPoint(0.65, 0.50, "estimate"),
-    "giant": AffectPoint(0.00, 0.25, "estimate"),
-    "chimpira": AffectPoint(-0.35, 0.60, "estimate"),
-}
-
-#: Default kernel width of :func:`weights_from_valence_arousal`.
-VA_KERNEL_WIDTH = 0.35
-
-
-def canonical_label(name: str) -> str:
-    """Normalize a user's label spelling: lower case, ``_`` as ``-``, aliases resolved."""
-    key = name.strip().lower().replace("_", "-").replace(" ", "-")
-    return ALIASES.get(key, key)
-
-
-def style_to_label(style: str) -> str:
-    """The emotion label of a data set style (``"normal"`` -> ``"neutral"``).
-
-    Raises:
-        EmotionError: the style is not a known label.
-    """
-    label = canonical_label(style)
-    if label not in VALENCE_AROUSAL:
-        raise EmotionError(
-            f"style {style!r} has no emotion label; known labels: {', '.join(ALL_LABELS)}"
-        )
-    return label
-
-
-def check_labels(labels: Sequence[str]) -> tuple[str, ...]:
-    """Validate a label tuple: known names, no repeats, at least one.
-
-    Raises:
-        EmotionError: naming the bad entry.
-    """
-    out = tuple(canonical_label(x) for x in labels)
-    if not out:
-        raise EmotionError("an emotion needs at least one label, e.g. ('happy', 'sad')")
-    for name in out:
-        if name not in VALENCE_AROUSAL:
-            raise EmotionError(_unknown_message(name, ALL_LABELS, f"labels {list(labels)}"))
-    if len(set(out)) != len(out):
-        dup = sorted({x for x in out if out.count(x) > 1})
-        raise EmotionError(f"labels {list(labels)} repeat {dup}: give each label once")
-    return out
-
-
-def _unknown_message(name: str, labels: Sequence[str], where: str) -> str:
-    if name in VALENCE_AROUSAL:
-        return (
-            f"emotion {name!r} in {where} is not one of this model's labels "
-            f"({', '.join(labels)}); use one of those, or a model whose labels include {name!r}"
-        )
-    close = difflib.get_close_matches(name, [*labels, *ALIASES], n=1)
-    hint = f" (did you mean {close[0]!r}?)" if close else ""
-    return f"unknown emotion {name!r} in {where}{hint}; known labels: {', '.join(labels)}"
-
-
-def _normalize(weights: np.ndarray, where: str, labels: Sequence[str]) -> np.ndarray:
-    """Check ``(..., C)`` weights and scale each vector to sum to one."""
-    w = np.asarray(weights, dtype=np.float64)
-    if w.shape[-1:] != (len(labels),):
-        raise EmotionError(
-            f"{where}: expected {len(labels)} weights for labels {list(labels)}, "
-            f"got shape {w.shape}"
-        )
-    if not np.all(np.isfinite(w)):
-        raise EmotionError(f"{where}: weights must be finite numbers, got {w.tolist()}")
-    if np.any(w < 0):
-        raise EmotionError(f"{where}: weights must be >= 0, got {w.tolist()}")
-    total = w.sum(axis=-1, keepdims=True)
-    if np.any(total <= 0):
-        raise EmotionError(f"{where}: all weights are zero; give at least one positive weight")
-    return w / total
-
-
-def label_points(labels: Sequence[str] = DEFAULT_LABELS) -> np.ndarray:
-    """``(C, 2)`` valence/arousal of each label."""
-    labels = check_labels(labels)
-    return np.array([[VALENCE_AROUSAL[x].valence, VALENCE_AROUSAL[x].arousal] for x in labels])
-
-
-def valence_arousal(weights: np.ndarray, labels: Sequence[str] = DEFAULT_LABELS) -> np.ndarray:
-    """Valence/arousal of emotion vectors.
-
-    Args:
-        weights: ``(..., C)`` non-negative weights (normalized here).
-        labels: the ``C`` labels.
-
-    Returns:
-        ``(..., 2)`` valence and arousal: the weighted mean of the labels' points.
-    """
-    labels = check_labels(labels)
-    return _normalize(weights, "emotion weights", labels) @ label_points(labels)
-
-
-def weights_from_valence_arousal(
-    va: np.ndarray, labels: Sequence[str] = DEFAULT_LABELS, width: float = VA_KERNEL_WIDTH
-) -> np.ndarray:
-    """Emotion vectors for valence/arousal points.
-
-    Args:
-        va: ``(..., 2)`` valence and arousal.
-        labels: the ``C`` labels.
-        width: kernel width in valence/arousal units; smaller gives sharper blends.
-
-    Returns:
-        ``(..., C)`` weights ``∝ exp(-|va - p_c|² / (2 width²))``, summing to one.
-
-    Raises:
-        EmotionError: ``va`` is not finite or has the wrong shape, or ``width <= 0``.
-    """
-    labels = check_labels(labels)
-    va = np.asarray(va, dtype=np.float64)
-    if va.shape[-1:] != (2,) or not np.all(np.isfinite(va)):
-        raise EmotionError(f"valence/arousal must be finite (..., 2) values, got {va.tolist()}")
-    if not width > 0:
-        raise EmotionError(f"kernel width must be positive, got {width}")
-    d2 = ((va[..., None, :] - label_points(labels)) ** 2).sum(-1)
-    return softmax(-d2 / (2.0 * width**2), axis=-1)
+__all__ = [
+    "ALIASES",
+    "ALL_LABELS",
+    "DEFAULT_LABELS",
+    "EXTRA_LABELS",
+    "VALENCE_AROUSAL",
+    "VA_KERNEL_WIDTH",
+    "VA_LIMIT",
+    "AffectPoint",
+    "Emotion",
+    "EmotionLike",
+    "EmotionSchedule",
+    "canonical_label",
+    "check_labels",
+    "check_valence_arousal",
+    "coerce_blend",
+    "coerce_emotion",
+    "label_points",
+    "style_to_label",
+    "valence_arousal",
+    "weights_from_valence_arousal",
+]
 
 
 @dataclass(frozen=True, eq=False)
@@ -248,7 +100,8 @@ class Emotion:
 
     def __post_init__(self) -> None:
         labels = check_labels(self.labels)
-        w = _normalize(np.asarray(self.weights, dtype=np.float64).reshape(-1), "emotion", labels)
+        w = normalize_weights(np.asarray(self.weights, dtype=np.float64).reshape(-1), "emotion",
+                              labels)
         w.setflags(write=False)
         object.__setattr__(self, "labels", labels)
         object.__setattr__(self, "weights", w)
@@ -275,7 +128,7 @@ class Emotion:
         for raw, value in mapping.items():
             name = canonical_label(str(raw))
             if name not in labels:
-                raise EmotionError(_unknown_message(name, labels, where))
+                raise EmotionError(unknown_label_message(name, labels, where))
             if name in seen:
                 raise EmotionError(f"emotion {name!r} appears twice in {where}: give it once")
             seen.add(name)
@@ -370,7 +223,7 @@ class Emotion:
     def __getitem__(self, name: str) -> float:
         key = canonical_label(name)
         if key not in self.labels:
-            raise EmotionError(_unknown_message(key, self.labels, "this emotion"))
+            raise EmotionError(unknown_label_message(key, self.labels, "this emotion"))
         return float(self.weights[self.labels.index(key)])
 
     def __str__(self) -> str:
@@ -393,11 +246,14 @@ class EmotionSchedule:
         times: ``(K,)`` keyframe times in seconds, non-decreasing, from 0.
         weights: ``(K, C)`` normalized emotion at each keyframe.
         labels: the ``C`` labels.
+        points: ``(K, 2)`` valence/arousal at each keyframe; by default (``None``) the
+            weighted mean of the label points of ``weights``.
     """
 
     times: np.ndarray
     weights: np.ndarray
     labels: tuple[str, ...] = DEFAULT_LABELS
+    points: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         labels = check_labels(self.labels)
@@ -412,21 +268,36 @@ class EmotionSchedule:
             raise EmotionError(
                 f"keyframe times must not decrease, got {times.tolist()}: sort the keyframes by t"
             )
-        weights = _normalize(np.asarray(self.weights, dtype=np.float64), "keyframes", labels)
+        weights = normalize_weights(np.asarray(self.weights, dtype=np.float64), "keyframes", labels)
         if weights.shape != (len(times), len(labels)):
             raise EmotionError(
                 f"expected keyframe weights of shape ({len(times)}, {len(labels)}), "
                 f"got {weights.shape}"
             )
-        for name, value in (("times", times), ("weights", weights), ("labels", labels)):
+        points = (weights @ label_points(labels) if self.points is None
+                  else np.asarray(self.points, dtype=np.float64))
+        if points.shape != (len(times), 2) or not np.all(np.isfinite(points)):
+            raise EmotionError(
+                f"expected finite keyframe valence/arousal of shape ({len(times)}, 2), "
+                f"got {points.tolist()}"
+            )
+        for name, value in (("times", times), ("weights", weights), ("labels", labels),
+                            ("points", points)):
             if isinstance(value, np.ndarray):
                 value.setflags(write=False)
             object.__setattr__(self, name, value)
 
     @classmethod
-    def constant(cls, emotion: Emotion) -> EmotionSchedule:
-        """The same emotion at every time."""
-        return cls(np.zeros(1), emotion.weights[None], emotion.labels)
+    def constant(cls, emotion: Emotion, point: Sequence[float] | None = None) -> EmotionSchedule:
+        """The same emotion at every time.
+
+        Args:
+            emotion: the emotion.
+            point: its exact valence/arousal, if it was given as a point (default: the
+                weighted mean of the label points).
+        """
+        points = None if point is None else np.asarray(point, dtype=np.float64).reshape(1, 2)
+        return cls(np.zeros(1), emotion.weights[None], emotion.labels, points)
 
     @classmethod
     def from_keyframes(
@@ -447,7 +318,7 @@ class EmotionSchedule:
             )
         if len(keyframes) == 0:
             raise EmotionError("an emotion schedule needs at least one keyframe")
-        times, rows = [], []
+        times, rows, points = [], [], []
         for k, frame in enumerate(keyframes):
             where = f"keyframe {k} ({json.dumps(frame) if _jsonable(frame) else frame!r})"
             if not isinstance(frame, Mapping) or "t" not in frame:
@@ -463,6 +334,7 @@ class EmotionSchedule:
                 raise EmotionError(
                     f"{where} has unknown keys {sorted(unknown)}; use t, emotion, valence, arousal"
                 )
+            point = None
             try:
                 if "emotion" in frame:
                     value = frame["emotion"]
@@ -473,9 +345,8 @@ class EmotionSchedule:
                     else:
                         raise EmotionError('"emotion" must be a mapping or text like "happy=1"')
                 elif "valence" in frame and "arousal" in frame:
-                    emotion = Emotion.from_valence_arousal(
-                        float(frame["valence"]), float(frame["arousal"]), labels
-                    )
+                    point = check_valence_arousal(frame["valence"], frame["arousal"])
+                    emotion = Emotion.from_valence_arousal(*point, labels)
                 else:
                     raise EmotionError('give "emotion", or "valence" and "arousal"')
             except EmotionError as exc:
@@ -484,9 +355,10 @@ class EmotionSchedule:
                 raise EmotionError(f"{where}: valence and arousal must be numbers") from None
             times.append(t)
             rows.append(emotion.weights)
+            points.append(emotion.valence_arousal() if point is None else point)
         if any(b < a for a, b in itertools.pairwise(times)):
             raise EmotionError(f"keyframe times {times} decrease: sort the keyframes by t")
-        return cls(np.array(times), np.stack(rows), labels)
+        return cls(np.array(times), np.stack(rows), labels, np.array(points))
 
     @classmethod
     def from_json(
@@ -519,14 +391,11 @@ class EmotionSchedule:
 
     @classmethod
     def parse(cls, spec: str, labels: Sequence[str] = DEFAULT_LABELS) -> EmotionSchedule:
-        """A schedule from a command-line value: JSON keyframes, a ``.json`` path or an emotion.
+        """A schedule from a command-line value.
 
-        ``"happy=0.7,neutral=0.3"`` gives a constant schedule.
+        JSON keyframes, a ``.json`` path or an emotion (:func:`coerce_emotion` of the text).
         """
-        text = spec.strip()
-        if text.startswith("[") or text.endswith(".json") or os.sep in text:
-            return cls.from_json(text, labels)
-        return cls.constant(Emotion.parse(text, labels))
+        return coerce_emotion(spec, labels)
 
     @property
     def duration(self) -> float:
@@ -543,21 +412,27 @@ class EmotionSchedule:
             ``(N, C)`` normalized weights (``(C,)`` for a scalar ``t``).
         """
         t = np.asarray(t, dtype=np.float64)
-        flat = t.reshape(-1)
-        k = len(self.times)
-        # Index of the first keyframe after each query; equal times switch instantly.
-        hi = np.clip(np.searchsorted(self.times, flat, side="right"), 1, k - 1) if k > 1 else None
-        if hi is None:
-            out = np.broadcast_to(self.weights[0], (len(flat), self.weights.shape[1])).copy()
-        else:
-            lo = hi - 1
-            span = self.times[hi] - self.times[lo]
-            safe = np.where(span > 0, span, 1.0)
-            alpha = np.clip(np.where(span > 0, (flat - self.times[lo]) / safe, 1.0), 0.0, 1.0)
-            alpha[flat < self.times[0]] = 0.0
-            out = (1 - alpha)[:, None] * self.weights[lo] + alpha[:, None] * self.weights[hi]
+        out = self._interpolate(self.weights, t.reshape(-1))
         out /= out.sum(axis=-1, keepdims=True)
         return out.reshape((*t.shape, -1))
+
+    def _interpolate(self, values: np.ndarray, flat: np.ndarray) -> np.ndarray:
+        """Interpolate keyframe ``values`` at times ``flat``.
+
+        ``(N, D)`` keyframe ``values`` ``(K, D)`` at times ``flat`` ``(N,)``: linear, held
+        outside the keyframes, an instant switch at equal times.
+        """
+        k = len(self.times)
+        if k == 1:
+            return np.broadcast_to(values[0], (len(flat), values.shape[1])).copy()
+        # Index of the first keyframe after each query; equal times switch instantly.
+        hi = np.clip(np.searchsorted(self.times, flat, side="right"), 1, k - 1)
+        lo = hi - 1
+        span = self.times[hi] - self.times[lo]
+        safe = np.where(span > 0, span, 1.0)
+        alpha = np.clip(np.where(span > 0, (flat - self.times[lo]) / safe, 1.0), 0.0, 1.0)
+        alpha[flat < self.times[0]] = 0.0
+        return (1 - alpha)[:, None] * values[lo] + alpha[:, None] * values[hi]
 
     def sample(
         self, fps: float, num_frames: int | None = None, duration: float | None = None
@@ -581,9 +456,145 @@ class EmotionSchedule:
             raise EmotionError(f"num_frames must be >= 0, got {num_frames}")
         return self.at(np.arange(num_frames) / fps).reshape(num_frames, len(self.labels))
 
+    def sample_valence_arousal(self, frames: int, fps: float) -> np.ndarray:
+        """The valence/arousal track at ``fps``, frame ``i`` at time ``i / fps``.
+
+        Args:
+            frames: number of frames ``T``.
+            fps: frame rate.
+
+        Returns:
+            ``(T, 2)`` valence and arousal: a valence/arousal keyframe's point exactly, a label
+            keyframe's weighted mean of label points, linear in between.
+
+        Raises:
+            EmotionError: ``fps`` not positive or ``frames`` negative.
+        """
+        if not (math.isfinite(fps) and fps > 0):
+            raise EmotionError(f"fps must be a positive number, got {fps}")
+        if frames < 0:
+            raise EmotionError(f"frames must be >= 0, got {frames}")
+        return self._interpolate(self.points, np.arange(frames) / fps)
+
+    def relabel(self, labels: Sequence[str]) -> EmotionSchedule:
+        """The schedule over other ``labels``.
+
+        A label it weighs that ``labels`` lack is an error, one ``labels`` add weighs zero.
+
+        Raises:
+            EmotionError: weight on a label not in ``labels``, naming it and the known ones.
+        """
+        labels = check_labels(labels)
+        if self.labels == labels:
+            return self
+        weights = np.zeros((len(self.times), len(labels)))
+        for k, name in enumerate(self.labels):
+            if name in labels:
+                weights[:, labels.index(name)] = self.weights[:, k]
+            elif np.any(self.weights[:, k] > 0):
+                raise EmotionError(
+                    f"the model has no emotion {name!r}; it knows {', '.join(labels)}"
+                )
+        return EmotionSchedule(self.times, weights, labels, self.points)
+
     def to_keyframes(self) -> list[dict[str, Any]]:
         """The keyframes as JSON-ready dicts (inverse of :meth:`from_keyframes`)."""
         return [
             {"t": float(t), "emotion": Emotion(w, self.labels).to_dict()}
             for t, w in zip(self.times, self.weights, strict=True)
         ]
+
+
+#: What :func:`coerce_emotion` accepts.
+EmotionLike = (Emotion | EmotionSchedule | str | os.PathLike | Mapping[str, Any]
+               | Sequence[Mapping[str, Any]] | np.ndarray)
+
+
+def _point(value: str | Mapping[str, Any]) -> tuple[float, float] | None:
+    """``(valence, arousal)`` of a valence/arousal value, or ``None``.
+
+    ``(valence, arousal)`` of ``"valence=V,arousal=A"`` or ``{"valence": V, "arousal": A}``,
+    checked by :func:`check_valence_arousal`; ``None`` for anything else.
+    """
+    if isinstance(value, str):
+        items = [item.replace(":", "=", 1).split("=", 1) for item in value.split(",")]
+        if not all(len(item) == 2 for item in items):
+            return None
+        pairs = {k.strip().lower(): v.strip() for k, v in items}
+    else:
+        pairs = {str(k).strip().lower(): v for k, v in value.items()}
+    keys = set(pairs) & {"valence", "arousal"}
+    if not keys:
+        return None
+    if set(pairs) != {"valence", "arousal"}:
+        raise EmotionError(f"emotion {value!r}: give both valence and arousal and nothing else, "
+                           "e.g. 'valence=0.5,arousal=-0.2', or label weights such as "
+                           "'happy=0.7,neutral=0.3'")
+    return check_valence_arousal(pairs["valence"], pairs["arousal"], f"emotion {value!r}")
+
+
+def coerce_blend(value: EmotionLike, labels: Sequence[str]) -> Emotion:
+    """One constant emotion over ``labels``.
+
+    :func:`coerce_emotion` of a value that does not change over time (no schedule, keyframes or
+    file).
+
+    Raises:
+        EmotionError: as :func:`coerce_emotion`, or a value that changes over time.
+    """
+    labels = check_labels(labels)
+    if isinstance(value, Emotion):
+        return Emotion.from_dict(value.to_dict(), labels)
+    if isinstance(value, np.ndarray):
+        return Emotion(value, labels)
+    if isinstance(value, str | Mapping):
+        point = _point(value)
+        if point is not None:
+            return Emotion.from_valence_arousal(*point, labels)
+        if isinstance(value, Mapping):
+            return Emotion.from_dict(value, labels)
+        return Emotion.parse(value, labels)
+    raise EmotionError(
+        f"an emotion must be a name such as 'sad', weights such as 'happy=0.7,neutral=0.3', "
+        f"'valence=V,arousal=A' or a mapping, got {type(value).__name__}"
+    )
+
+
+def coerce_emotion(value: EmotionLike, labels: Sequence[str]) -> EmotionSchedule:
+    """Any emotion a user or a caller can give, as a schedule over a model's ``labels``.
+
+    Args:
+        value: an :class:`Emotion`; an :class:`EmotionSchedule`; a label ``"sad"``; a blend
+            ``"happy=0.7,neutral=0.3"``; a point ``"valence=V,arousal=A"`` of the -1..1
+            circumplex (``|V|, |A| <= VA_LIMIT``); a mapping of either; ``(C,)`` weights over
+            ``labels``; a list of keyframes; or JSON keyframes as text or a path to a file.
+        labels: the model's ``C`` labels. Labels of ``value`` that the model lacks must weigh
+            zero.
+
+    Returns:
+        The schedule over ``labels`` (one keyframe at ``t = 0`` for a constant emotion), with
+        the exact valence/arousal of points given as such.
+
+    Raises:
+        EmotionError: unknown names, negative, non-finite or all-zero weights, a point outside
+            the circumplex (showing the conversion from the FCRBM's old 1..3 scale), a bad
+            keyframe or file, or weight on a label the model does not know.
+    """
+    labels = check_labels(labels)
+    if isinstance(value, Emotion):
+        value = EmotionSchedule.constant(value)
+    if isinstance(value, EmotionSchedule):
+        return value.relabel(labels)
+    if isinstance(value, os.PathLike):
+        return EmotionSchedule.from_json(value, labels)
+    if isinstance(value, str):
+        text = value.strip()
+        if text.startswith("[") or text.endswith(".json") or os.sep in text:
+            return EmotionSchedule.from_json(text, labels)
+    if isinstance(value, Sequence) and not isinstance(value, str):
+        return EmotionSchedule.from_keyframes(value, labels)
+    if isinstance(value, str | Mapping):
+        point = _point(value)
+        if point is not None:
+            return EmotionSchedule.constant(Emotion.from_valence_arousal(*point, labels), point)
+    return EmotionSchedule.constant(coerce_blend(value, labels))

@@ -26,6 +26,8 @@ from collections import defaultdict
 from collections.abc import Iterable, Sequence
 from typing import Protocol, TypeVar
 
+import numpy as np
+
 from emotive.errors import DataError
 
 SPLITS: tuple[str, ...] = ("train", "val", "test")
@@ -43,6 +45,7 @@ class _Labelled(Protocol):
 
 
 C = TypeVar("C", bound=_Labelled)
+T = TypeVar("T")
 
 
 def _key(seed: int, name: str) -> str:
@@ -114,3 +117,23 @@ def split_clips(
     """
     parts = assign_splits(clips, val_fraction, test_fraction, seed)
     return {s: [c for c in clips if parts[c.name] == s] for s in SPLITS}
+
+
+def spread(items: Sequence[T], count: int) -> list[T]:
+    """At most ``count`` items evenly spread over ``items``, in order (all when ``count`` is 0).
+
+    For quick runs on a few clips of each split (the trainers' ``max_clips``): the kept items
+    are at indices ``round(linspace(0, n - 1, count))``, so they cover the whole list, and the
+    same list and count always keep the same items.
+
+    Args:
+        items: the ``n`` items, e.g. a split's clips.
+        count: how many to keep (``0``: all).
+
+    Returns:
+        The kept items (``min(count, n)`` of them, or all ``n``).
+    """
+    if not count or count >= len(items):
+        return list(items)
+    keep = np.unique(np.linspace(0, len(items) - 1, count).round().astype(np.int64))
+    return [items[i] for i in keep]

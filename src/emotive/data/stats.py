@@ -46,7 +46,9 @@ def frame_stats(
     Args:
         name: registry name.
         locomotion: count only the locomotion contents (the split is made over those clips).
-        val_fraction, test_fraction, seed: the split, see :mod:`emotive.data.splits`.
+        val_fraction: share of validation clips, see :mod:`emotive.data.splits`.
+        test_fraction: share of test clips, see :mod:`emotive.data.splits`.
+        seed: seed of the split, see :mod:`emotive.data.splits`.
         progress: show a progress bar if the clips must be parsed first.
     """
     info = get_dataset(name)

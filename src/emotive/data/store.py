@@ -32,6 +32,14 @@ import urllib.request
 from dataclasses import dataclass
 from pathlib import Path
 
+from rich.progress import (
+    BarColumn,
+    DownloadColumn,
+    Progress,
+    TimeRemainingColumn,
+    TransferSpeedColumn,
+)
+
 import emotive
 from emotive.data.registry import DatasetInfo, get_dataset
 from emotive.errors import ChecksumError, DataError
@@ -349,14 +357,6 @@ def download(url: str, dest: Path, *, progress: bool = False) -> Path:
     done = start
     bar = None
     if progress:
-        from rich.progress import (
-            BarColumn,
-            DownloadColumn,
-            Progress,
-            TimeRemainingColumn,
-            TransferSpeedColumn,
-        )
-
         bar = Progress(
             "[progress.description]{task.description}", BarColumn(), DownloadColumn(),
             TransferSpeedColumn(), TimeRemainingColumn(),

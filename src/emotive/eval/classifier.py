@@ -224,6 +224,7 @@ class EmotionClassifierNet(nn.Module):
         self.out = nn.Linear(c, len(config.labels))
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """``(B, C)`` logits of ``(B, T, F)`` standardized features."""
         h = self.blocks(self.inp(x.transpose(1, 2)))
         return self.out(self.drop(h.mean(-1)))
 
@@ -314,6 +315,7 @@ class EmotionGraphNet(nn.Module):
         self.out = nn.Linear(c + a, len(config.labels))
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """``(B, C)`` logits of ``(B, T, F)`` standardized features."""
         graph = self.blocks(joint_nodes(x)).mean((1, 2))
         affect = self.affect(x[..., JOINT_COLUMNS:].transpose(1, 2)).mean(-1)
         return self.out(self.drop(torch.cat((graph, affect), 1)))

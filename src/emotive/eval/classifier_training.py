@@ -28,6 +28,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 import torch
+from rich.console import Console
+from rich.progress import track
 from torch import nn
 
 from emotive.data.clips import load_clips
@@ -146,9 +148,6 @@ def train_classifier(config: ClassifierConfig | None = None, progress: bool = Fa
         The classifier with ``metrics["val"]`` and ``metrics["test"]`` from :func:`measure`.
         Deterministic for a config on CPU.
     """
-    from rich.console import Console
-    from rich.progress import track
-
     config = config or ClassifierConfig()
     data = data if data is not None else load_split_features(config, progress)
     if not data["train"]:

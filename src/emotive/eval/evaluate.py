@@ -1,47 +1,77 @@
-"""``emotive evaluate``: run the suites on a model, a generator or a folder of BVH files.
+"""``emotive evaluate``: run the suites on a registered model, a checkpoint or a folder of BVH.
 
 What can be evaluated (:func:`resolve_subject`):
 
 * a folder of BVH files with intended emotions (:func:`emotive.eval.sources.read_folder`);
-* a motion predictor by name (:data:`PREDICTORS`: the zero-velocity baseline);
-* a model by name (:data:`MODELS`: the pretrained gait network, its two ablations and the
-  QuaterNet baseline) or a gait checkpoint file: predictors for Table 1, and for the gait
-  network a generator (:class:`~emotive.eval.sources.Generator`) asked for the standard
-  requests.
+* any model of the registry (:mod:`emotive.models.registry`, ``emotive models``), by what it
+  can be loaded as: a ``predictor`` is judged by Table 1, a ``generator`` by every motion suite
+  its :class:`~emotive.models.api.Capabilities` allow (the standard requests of
+  :func:`~emotive.eval.sources.standard_requests`, less what it cannot honour:
+  :func:`~emotive.eval.sources.requests_for`) and by ``speed``, a ``transfer`` model by the
+  motion suites on a few real neutral walks rendered in each label (:func:`transfer_clips`),
+  and the ``classifier`` by the emotion suite on real held-out clips (its own accuracy);
+* a gait checkpoint file (``.pt``), as the ``gait`` model with those weights.
 
-Suites (:data:`SUITES`) declare what they need: motions with intended emotions (``emotion``,
-``transition``, ``path``, ``longrun``, ``quality``, ``affect``), a predictor (``table1``) or a
-generator (``speed``). ``all`` runs every suite the subject supports.
+Suites (:data:`SUITES`) declare what they need (:data:`NEEDS`): motions with intended emotions
+(``emotion``, ``longrun``, ``quality``, ``affect``), motions along paths (``path``), motions
+whose emotion changes (``transition``), a predictor (``table1``) or a generator (``speed``).
+``all`` runs every suite the subject supports.
 """
 
 from __future__ import annotations
 
+import difflib
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
-from emotive.data.emotion import ALL_LABELS, DEFAULT_LABELS
+from rich.console import Console
+from rich.progress import track
+
+from emotive.data.clips import load_clips
+from emotive.data.emotion import ALL_LABELS, DEFAULT_LABELS, Emotion, EmotionSchedule
+from emotive.data.splits import split_clips
 from emotive.errors import EmotiveError
 from emotive.eval import suites
 from emotive.eval.classifier import EmotionClassifier, load_default_classifier
 from emotive.eval.sources import (
     EvaluatedMotion,
-    GenerationRequest,
-    Generator,
     from_generator,
+    from_transfer,
     read_folder,
+    requests_for,
     standard_requests,
 )
-from emotive.eval.table1 import Predictor, ZeroVelocity
+from emotive.eval.table1 import ZeroVelocity, table1
+from emotive.models.api import GenerationRequest, Generator, Predictor, TransferModel
+from emotive.models.registry import REGISTRY, get_model
+
+#: Real neutral walks a transfer model renders in each label (:func:`transfer_clips`).
+TRANSFER_CLIPS = 2
 
 
 class EvaluationError(EmotiveError):
     """A model or suite that cannot be evaluated as asked."""
 
 
-#: Predictors by name.
-PREDICTORS: dict[str, Callable[[], Predictor]] = {"zero-velocity": ZeroVelocity}
+def load_zero_velocity(name: str = "zero-velocity", weights: None = None) -> ZeroVelocity:
+    """Registry loader of ``zero-velocity``.
+
+    The baseline predictor (:class:`~emotive.eval.table1.ZeroVelocity`, named as in Table 1).
+    """
+    return ZeroVelocity()
+
+
+def load_classifier(name: str = "classifier", weights: str | Path | None = None
+                    ) -> EmotionClassifier:
+    """Registry loader of ``classifier``.
+
+    The committed perceived-emotion classifier, or the one of ``weights`` (a file of ``emotive train
+    classifier``).
+    """
+    return EmotionClassifier.load(weights) if weights is not None else load_default_classifier()
 
 
 @dataclass
@@ -52,88 +82,137 @@ class Subject:
         name: for the report.
         read_motions: produces the motions with their intended emotion.
         predictor: a motion predictor (Table 1).
-        generator: a generator (all motion suites and speed).
+        generator: a generator (the motion suites its capabilities allow, and speed).
+        classifier: the judge to use when the caller gives none (the subject of
+            ``--model classifier``).
+        paths: whether :attr:`read_motions` may hold motions along paths.
+        transitions: whether :attr:`read_motions` may hold motions whose emotion changes.
     """
 
     name: str
     read_motions: Callable[[], list[EvaluatedMotion]] | None = None
     predictor: Predictor | None = None
     generator: Generator | None = None
+    classifier: EmotionClassifier | None = None
+    paths: bool = True
+    transitions: bool = True
 
     def provides(self) -> set[str]:
-        """``"motions"``, ``"predictor"`` and/or ``"generator"``."""
+        """What the subject offers, among the keys of :data:`NEEDS`."""
         out = set()
-        if self.read_motions is not None or self.generator is not None:
+        if self.read_motions is not None:
             out.add("motions")
+            out |= {"paths"} if self.paths else set()
+            out |= {"transitions"} if self.transitions else set()
+        if self.generator is not None:
+            caps = self.generator.capabilities
+            out |= {"motions", "generator"}
+            out |= {"paths"} if caps.paths else set()
+            out |= {"transitions"} if caps.schedules else set()
         if self.predictor is not None:
             out.add("predictor")
-        if self.generator is not None:
-            out.add("generator")
         return out
 
 
-def gait_subject(checkpoint: str | Path | None = None) -> Subject:
-    """The gait network of a checkpoint (default: the pretrained one) as a predictor (Table 1)
-    and a generator (every motion suite and speed)."""
-    from emotive.models.gait.generate import NetworkGenerator
-    from emotive.models.gait.model import load_gait_model
-    from emotive.models.gait.predict import GaitPredictor
+def transfer_clips(labels: tuple[str, ...], count: int = TRANSFER_CLIPS
+                   ) -> list[EvaluatedMotion]:
+    """The first ``count`` neutral walks of the held-out test split of ``bandai-namco-1``.
 
-    model = load_gait_model(checkpoint)
-    name = "emotive-gait" if checkpoint is None else Path(checkpoint).stem
-    return Subject(name, predictor=GaitPredictor(model, name="Ours"),
-                   generator=NetworkGenerator(model, name=name))
-
-
-def quaternet_subject(checkpoint: str | Path | None = None) -> Subject:
-    """The QuaterNet baseline of a checkpoint (default: the committed one) as a predictor."""
-    from emotive.models.gait.controls import GaitControls
-    from emotive.models.gait.predict import QuaterNetPredictor
-    from emotive.models.quaternet.training import load_quaternet_checkpoint
-
-    path = Path(checkpoint) if checkpoint is not None else baseline_path("quaternet")
-    network, ckpt = load_quaternet_checkpoint(path)
-    return Subject("quaternet", predictor=QuaterNetPredictor(
-        network, GaitControls.from_dict(ckpt["controls"])))
+    Raises:
+        DataError: the data set is missing.
+    """
+    test = split_clips(load_clips("bandai-namco-1", locomotion=True))["test"]
+    neutral = [c for c in test if c.info.emotion == "neutral"][:count]
+    schedule = EmotionSchedule.constant(Emotion.one_hot("neutral", labels))
+    return [EvaluatedMotion(c.name, c.motion,
+                            schedule.sample(c.motion.fps, num_frames=c.motion.num_frames),
+                            labels) for c in neutral]
 
 
-def baseline_path(name: str) -> Path:
-    """A committed baseline or ablation checkpoint, ``emotive/assets/gait/<name>.pt``."""
-    from emotive.models.gait.model import default_checkpoint_path
+def transfer_subject(model: TransferModel, labels: tuple[str, ...] = DEFAULT_LABELS,
+                     count: int = TRANSFER_CLIPS,
+                     clips: Callable[[], list[EvaluatedMotion]] | None = None) -> Subject:
+    """A transfer model as motions: clips rendered in each of ``labels``.
 
-    return default_checkpoint_path().with_name(f"{name}.pt")
-
-
-#: Subjects by name, beyond :data:`PREDICTORS`: the pretrained gait network, its ablations and
-#: the QuaterNet baseline (committed checkpoints).
-MODELS: dict[str, Callable[[], Subject]] = {
-    "emotive-gait": gait_subject,
-    "gait-no-affective": lambda: gait_subject(baseline_path("gait-no-affective")),
-    "gait-no-root-loss": lambda: gait_subject(baseline_path("gait-no-root-loss")),
-    "quaternet": quaternet_subject,
-}
+    A transfer model as motions: the ``clips`` (default: :func:`transfer_clips`) rendered
+    in each of ``labels`` (the labels the model lacks are left out).
+    """
+    styles = tuple(label for label in labels if label in model.labels)
+    read = clips or (lambda: transfer_clips(labels, count))
+    return Subject(model.name, paths=False, transitions=False,
+                   read_motions=lambda: from_transfer(model, read(), styles))
 
 
-def resolve_subject(spec: str | Path, labels: tuple[str, ...] = DEFAULT_LABELS) -> Subject:
-    """A folder of BVH files, a registered model or predictor name (:data:`MODELS`,
-    :data:`PREDICTORS`), or a gait checkpoint file (``.pt``).
+def held_out_subject(classifier: EmotionClassifier) -> Subject:
+    """The classifier judged on the real held-out test clips of its labels."""
+    labels = classifier.labels
+
+    def read() -> list[EvaluatedMotion]:
+        test = split_clips(load_clips("bandai-namco-1", locomotion=True))["test"]
+        out = []
+        for clip in test:
+            if clip.info.emotion in labels:
+                schedule = EmotionSchedule.constant(Emotion.one_hot(clip.info.emotion, labels))
+                out.append(EvaluatedMotion(clip.name, clip.motion, schedule.sample(
+                    clip.motion.fps, num_frames=clip.motion.num_frames), labels))
+        return out
+
+    return Subject("classifier", read_motions=read, classifier=classifier, paths=False,
+                   transitions=False)
+
+
+def model_subject(name: str, labels: tuple[str, ...] = DEFAULT_LABELS,
+                  weights: str | Path | None = None, **options: Any) -> Subject:
+    """A registered model as a subject, by its kinds.
+
+    A registered model (:data:`~emotive.models.registry.REGISTRY`) as a subject, by its
+    kinds (see the module docstring).
+
+    Raises:
+        ModelError: an unknown name or option.
+    """
+    entry = get_model(name)
+    label = name if weights is None else Path(weights).stem
+    if "classifier" in entry.kinds:
+        return held_out_subject(entry.load("classifier", weights, **options))
+    if "transfer" in entry.kinds:
+        return transfer_subject(entry.load("transfer", weights, **options), labels)
+    return Subject(
+        label,
+        predictor=entry.load("predictor", weights, **options)
+        if "predictor" in entry.kinds else None,
+        generator=entry.load("generator", weights, **options)
+        if "generator" in entry.kinds else None,
+    )
+
+
+def resolve_subject(spec: str | Path, labels: tuple[str, ...] = DEFAULT_LABELS,
+                    weights: str | Path | None = None, **options: Any) -> Subject:
+    """A folder of BVH files, a registered model name, or a gait checkpoint file (``.pt``).
+
+    Args:
+        spec: what to evaluate.
+        labels: the labels of the intended emotions (the classifier's).
+        weights: weights of a registered model instead of its default.
+        **options: model-specific options (see ``emotive models``); ``None`` ones are ignored.
 
     Raises:
         EvaluationError: none of these.
+        ModelError: an option the model does not take.
     """
     text = str(spec)
     if Path(text).is_dir():
         return Subject(Path(text).name or text, read_motions=lambda: read_folder(text, labels))
-    if text in PREDICTORS:
-        return Subject(text, predictor=PREDICTORS[text]())
-    if text in MODELS:
-        return MODELS[text]()
+    if text in REGISTRY:
+        return model_subject(text, labels, weights, **options)
     if text.endswith(".pt"):
-        return gait_subject(text)
+        return model_subject("gait", labels, text, **options)
+    close = difflib.get_close_matches(text, list(REGISTRY), n=1)
+    hint = f" (did you mean {close[0]!r}?)" if close else ""
     raise EvaluationError(
-        f"cannot evaluate {text!r}: give a folder of BVH files (with labels.json or Bandai "
-        f"file names), a gait checkpoint (.pt) or one of the models "
-        f"{', '.join([*MODELS, *PREDICTORS])}"
+        f"cannot evaluate {text!r}{hint}: give a folder of BVH files (with labels.json or "
+        f"Bandai file names), a gait checkpoint (.pt) or one of the models "
+        f"{', '.join(REGISTRY)} (see `emotive models`)"
     )
 
 
@@ -150,9 +229,11 @@ class Context:
 
     @property
     def motions(self) -> list[EvaluatedMotion]:
+        """The subject's motions, generated or read on first use."""
         if self._motions is None:
             if self.subject.generator is not None:
-                self._motions = from_generator(self.subject.generator, self.requests)
+                requests = requests_for(self.subject.generator.capabilities, self.requests)
+                self._motions = from_generator(self.subject.generator, requests)
             else:
                 assert self.subject.read_motions is not None
                 self._motions = self.subject.read_motions()
@@ -170,10 +251,6 @@ class Context:
 
 
 def _table1(ctx: Context) -> dict:
-    from emotive.data.clips import load_clips
-    from emotive.data.splits import split_clips
-    from emotive.eval.table1 import table1
-
     assert ctx.subject.predictor is not None
     # Every style is a label here: the four emotions alone leave two test clips long enough
     # for the paper's 6-second windows.
@@ -196,23 +273,33 @@ def _speed(ctx: Context) -> dict:
     generator = ctx.subject.generator
     assert generator is not None
     rows = []
+    usable = requests_for(generator.capabilities, ctx.requests)
     for agents in (1, 10):
-        requests = [ctx.requests[k % len(ctx.requests)] for k in range(agents)]
+        requests = [usable[k % len(usable)] for k in range(agents)]
         start = time.perf_counter()
-        frames = sum(generator.generate(r).num_frames for r in requests)
+        frames = sum(generator.generate(r).motion.num_frames for r in requests)
         seconds = time.perf_counter() - start
         rows.append({"agents": agents, "frames": frames, "seconds": seconds,
                      "agent_frames_per_second": frames / seconds})
     return {"rows": rows}
 
 
-#: Suite name -> (what it needs, runner).
+#: What a suite may need (:meth:`Subject.provides`), in words for messages.
+NEEDS: dict[str, str] = {
+    "motions": "motions with intended emotions",
+    "paths": "motions along paths (a generator that follows paths, or a folder)",
+    "transitions": "motions whose emotion changes (a generator of schedules, or a folder)",
+    "predictor": "a predictor (a motion-prediction model)",
+    "generator": "a generator",
+}
+
+#: Suite name -> (what it needs, a key of :data:`NEEDS`; runner).
 SUITES: dict[str, tuple[str, Callable[[Context], dict]]] = {
     "table1": ("predictor", _table1),
     "emotion": ("motions", lambda ctx: suites.emotion_suite(ctx.motions, ctx.classifier)),
-    "transition": ("motions", lambda ctx: suites.transition_suite(ctx.motions, ctx.classifier,
-                                                                  ctx.reference)),
-    "path": ("motions", lambda ctx: suites.path_suite(ctx.motions)),
+    "transition": ("transitions", lambda ctx: suites.transition_suite(
+        ctx.motions, ctx.classifier, ctx.reference)),
+    "path": ("paths", lambda ctx: suites.path_suite(ctx.motions)),
     "longrun": ("motions", lambda ctx: suites.longrun_suite(ctx.motions, ctx.reference)),
     "quality": ("motions", lambda ctx: suites.quality_suite(ctx.motions, ctx.reference)),
     "affect": ("motions", lambda ctx: suites.affect_suite(ctx.motions, ctx.reference)),
@@ -225,7 +312,9 @@ def run_suites(subject: Subject, suite: str, classifier: EmotionClassifier | Non
                ) -> tuple[dict[str, dict], dict]:
     """Run one suite or ``"all"`` on a subject.
 
-    ``requests`` replace :func:`~emotive.eval.sources.standard_requests` for a generator.
+    ``requests`` replace :func:`~emotive.eval.sources.standard_requests` for a generator
+    (either way reduced to what the generator can honour,
+    :func:`~emotive.eval.sources.requests_for`).
 
     Returns:
         ``(suite name -> result, facts for the report)``.
@@ -233,9 +322,6 @@ def run_suites(subject: Subject, suite: str, classifier: EmotionClassifier | Non
     Raises:
         EvaluationError: unknown suite, or one the subject cannot be judged by.
     """
-    from rich.console import Console
-    from rich.progress import track
-
     if suite != "all" and suite not in SUITES:
         raise EvaluationError(f"unknown suite {suite!r}: use one of {', '.join(SUITES)} or all")
     provided = subject.provides()
@@ -244,11 +330,11 @@ def run_suites(subject: Subject, suite: str, classifier: EmotionClassifier | Non
     need = SUITES[names[0]][0] if names else None
     if not names or need not in provided:
         raise EvaluationError(
-            f"suite {suite!r} needs a {need or 'model'}, and {subject.name} provides "
-            f"{', '.join(sorted(provided)) or 'nothing'}; suites it supports: "
+            f"suite {suite!r} needs {NEEDS.get(need or '', 'a model')}, and {subject.name} "
+            f"provides {', '.join(sorted(provided)) or 'nothing'}; suites it supports: "
             f"{', '.join(s for s, (n, _) in SUITES.items() if n in provided)}"
         )
-    classifier = classifier or load_default_classifier()
+    classifier = classifier or subject.classifier or load_default_classifier()
     ctx = Context(subject, classifier,
                   requests if requests is not None else standard_requests(classifier.labels))
     results = {}

@@ -40,8 +40,8 @@ def _strip(value: Any) -> Any:
 
 
 def _figure(width: float, height: float):
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
+    from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: PLC0415 (heavy: matplotlib)
+    from matplotlib.figure import Figure  # noqa: PLC0415 (heavy: matplotlib)
 
     fig = Figure(figsize=(width, height), dpi=100)
     FigureCanvasAgg(fig)
@@ -137,82 +137,128 @@ _PLOTS: dict[str, Callable[[dict, Path], list[str]]] = {
 }
 
 
+def _table1_lines(result: dict) -> list[str]:
+    """The body of the ``table1`` section."""
+    return result.get("markdown", "").splitlines()
+
+
+def _emotion_lines(result: dict) -> list[str]:
+    """The body of the ``emotion`` section."""
+    out = [
+        f"Windows: {result['windows']}; accuracy of the dominant label: "
+        f"{_fmt(result['window_accuracy'])} (the classifier on real held-out motion: "
+        f"{_fmt(result['real_window_accuracy'])}; share: "
+        f"{_fmt(result['share_of_real_accuracy'])}). Table-3 tests rejected: "
+        f"{result['table3_rejected']} of {len(result['items'])}.",
+        "",
+        "| item | intended | perceived | window accuracy | AD statistic | p | reject |",
+        "|---|---|---|---:|---:|---:|---|",
+    ]
+    for r in result["items"]:
+        intended = max(r["intended"], key=r["intended"].get)
+        perceived = max(r["perceived"], key=r["perceived"].get)
+        t3 = r["table3"]
+        p = _fmt(t3["p_value"]) + (" (bound)" if t3.get("p_value_bounded") else "")
+        out.append(f"| {r['name']} | {intended} | {perceived} | "
+                   f"{_fmt(r['window_accuracy'])} | {_fmt(t3['statistic'])} | {p} | "
+                   f"{_fmt(t3['reject'])} |")
+    if result["skipped"]:
+        out += ["", f"Not judged (labels unknown to the classifier or too short): "
+                f"{', '.join(result['skipped'])}"]
+    return out
+
+
+def _transition_lines(result: dict) -> list[str]:
+    """The body of the ``transition`` section."""
+    out = ["| item | change (s) | intended start -> end | perceived start -> end | "
+            "jerk percentile | smooth |", "|---|---|---|---|---|---|"]
+    for r in result["items"]:
+        out.append(
+            f"| {r['name']} | {', '.join(f'{t:.1f}' for t in r['change_seconds'])} | "
+            f"{r['initial_intended']} -> {r['final_intended']} | "
+            f"{r['initial_perceived']} -> {r['final_perceived']} | "
+            f"{', '.join(f'{p:.0f}' for p in r.get('jerk_percentile', []))} | "
+            f"{_fmt(r.get('smooth'))} |")
+    return out
+
+
+def _path_lines(result: dict) -> list[str]:
+    """The body of the ``path`` section."""
+    out = ["| item | mean deviation (m) | max deviation (m) | mean heading deviation (deg) |",
+            "|---|---:|---:|---:|"]
+    for r in result["items"]:
+        out.append(f"| {r['name']} | {_fmt(r['mean_position_deviation'])} | "
+                   f"{_fmt(r['max_position_deviation'])} | "
+                   f"{_fmt(r['mean_heading_deviation'], 1)} |")
+    return out
+
+
+def _longrun_lines(result: dict) -> list[str]:
+    """The body of the ``longrun`` section."""
+    out = ["| item | seconds | stable | collapsed at | exploded at | share in real band |",
+            "|---|---:|---|---|---|---:|"]
+    for r in result["items"]:
+        out.append(f"| {r['name']} | {len(r['energy'])} | {_fmt(r['stable'])} | "
+                   f"{_fmt(r['collapsed_at'])} | {_fmt(r['exploded_at'])} | "
+                   f"{_fmt(r.get('share_in_real_band'))} |")
+    return out
+
+
+def _quality_lines(result: dict) -> list[str]:
+    """The body of the ``quality`` section."""
+    out = [f"Mean skate speed {_fmt(result['mean_skate_speed'])} m/s; real motion "
+            f"{_fmt(result['real_skate_speed'])} m/s; ratio {_fmt(result['skate_vs_real'])}. "
+            f"Mean jerk {_fmt(result['mean_jerk'], 1)} m/s^3; real motion "
+            f"{_fmt(result['real_jerk'], 1)}; ratio {_fmt(result['jerk_vs_real'])}.",
+            "", "| item | skate (m/s) | skating share | max penetration (m) | jerk (m/s^3) |",
+            "|---|---:|---:|---:|---:|"]
+    for r in result["items"]:
+        out.append(f"| {r['name']} | {_fmt(r['skate_speed'])} | {_fmt(r['skate_ratio'])} | "
+                   f"{_fmt(r['penetration_max'])} | {_fmt(r['jerk'], 1)} |")
+    return out
+
+
+def _affect_lines(result: dict) -> list[str]:
+    """The body of the ``affect`` section."""
+    out = ["Fréchet distance of the 18 affective + 8 movement features per frame against "
+            "real held-out motion of the same emotion; the last column is the same distance "
+            "from real training motion (the level of real data).", "",
+            "| emotion | items | frames | Fréchet to real | real train to real | diversity |",
+            "|---|---:|---:|---:|---:|---:|"]
+    for r in result["labels"]:
+        out.append(f"| {r['label']} | {len(r['items'])} | {r['frames']} | "
+                   f"{_fmt(r.get('frechet_to_real'), 2)} | "
+                   f"{_fmt(r.get('frechet_real_train_to_real'), 2)} | "
+                   f"{_fmt(r.get('diversity'), 2)} |")
+    return out
+
+
+def _speed_lines(result: dict) -> list[str]:
+    """The body of the ``speed`` section."""
+    out = ["| agents | frames | seconds | agent-frames/s |", "|---:|---:|---:|---:|"]
+    for r in result["rows"]:
+        out.append(f"| {r['agents']} | {r['frames']} | {_fmt(r['seconds'])} | "
+                   f"{_fmt(r['agent_frames_per_second'], 0)} |")
+    return out
+
+
+#: The body of each suite's section, by suite name.
+_SECTION_BODIES: dict[str, Callable[[dict], list[str]]] = {
+    "table1": _table1_lines,
+    "emotion": _emotion_lines,
+    "transition": _transition_lines,
+    "path": _path_lines,
+    "longrun": _longrun_lines,
+    "quality": _quality_lines,
+    "affect": _affect_lines,
+    "speed": _speed_lines,
+}
+
+
 def _section(name: str, result: dict) -> list[str]:
     out = [f"## {name}", ""]
-    if name == "table1":
-        out += result.get("markdown", "").splitlines()
-    elif name == "emotion":
-        out += [
-            f"Windows: {result['windows']}; accuracy of the dominant label: "
-            f"{_fmt(result['window_accuracy'])} (the classifier on real held-out motion: "
-            f"{_fmt(result['real_window_accuracy'])}; share: "
-            f"{_fmt(result['share_of_real_accuracy'])}). Table-3 tests rejected: "
-            f"{result['table3_rejected']} of {len(result['items'])}.",
-            "",
-            "| item | intended | perceived | window accuracy | AD statistic | p | reject |",
-            "|---|---|---|---:|---:|---:|---|",
-        ]
-        for r in result["items"]:
-            intended = max(r["intended"], key=r["intended"].get)
-            perceived = max(r["perceived"], key=r["perceived"].get)
-            t3 = r["table3"]
-            p = _fmt(t3["p_value"]) + (" (bound)" if t3.get("p_value_bounded") else "")
-            out.append(f"| {r['name']} | {intended} | {perceived} | "
-                       f"{_fmt(r['window_accuracy'])} | {_fmt(t3['statistic'])} | {p} | "
-                       f"{_fmt(t3['reject'])} |")
-        if result["skipped"]:
-            out += ["", f"Not judged (labels unknown to the classifier or too short): "
-                    f"{', '.join(result['skipped'])}"]
-    elif name == "transition":
-        out += ["| item | change (s) | intended start -> end | perceived start -> end | "
-                "jerk percentile | smooth |", "|---|---|---|---|---|---|"]
-        for r in result["items"]:
-            out.append(
-                f"| {r['name']} | {', '.join(f'{t:.1f}' for t in r['change_seconds'])} | "
-                f"{r['initial_intended']} -> {r['final_intended']} | "
-                f"{r['initial_perceived']} -> {r['final_perceived']} | "
-                f"{', '.join(f'{p:.0f}' for p in r.get('jerk_percentile', []))} | "
-                f"{_fmt(r.get('smooth'))} |")
-    elif name == "path":
-        out += ["| item | mean deviation (m) | max deviation (m) | mean heading deviation (deg) |",
-                "|---|---:|---:|---:|"]
-        for r in result["items"]:
-            out.append(f"| {r['name']} | {_fmt(r['mean_position_deviation'])} | "
-                       f"{_fmt(r['max_position_deviation'])} | "
-                       f"{_fmt(r['mean_heading_deviation'], 1)} |")
-    elif name == "longrun":
-        out += ["| item | seconds | stable | collapsed at | exploded at | share in real band |",
-                "|---|---:|---|---|---|---:|"]
-        for r in result["items"]:
-            out.append(f"| {r['name']} | {len(r['energy'])} | {_fmt(r['stable'])} | "
-                       f"{_fmt(r['collapsed_at'])} | {_fmt(r['exploded_at'])} | "
-                       f"{_fmt(r.get('share_in_real_band'))} |")
-    elif name == "quality":
-        out += [f"Mean skate speed {_fmt(result['mean_skate_speed'])} m/s; real motion "
-                f"{_fmt(result['real_skate_speed'])} m/s; ratio {_fmt(result['skate_vs_real'])}. "
-                f"Mean jerk {_fmt(result['mean_jerk'], 1)} m/s^3; real motion "
-                f"{_fmt(result['real_jerk'], 1)}; ratio {_fmt(result['jerk_vs_real'])}.",
-                "", "| item | skate (m/s) | skating share | max penetration (m) | jerk (m/s^3) |",
-                "|---|---:|---:|---:|---:|"]
-        for r in result["items"]:
-            out.append(f"| {r['name']} | {_fmt(r['skate_speed'])} | {_fmt(r['skate_ratio'])} | "
-                       f"{_fmt(r['penetration_max'])} | {_fmt(r['jerk'], 1)} |")
-    elif name == "affect":
-        out += ["Fréchet distance of the 18 affective + 8 movement features per frame against "
-                "real held-out motion of the same emotion; the last column is the same distance "
-                "from real training motion (the level of real data).", "",
-                "| emotion | items | frames | Fréchet to real | real train to real | diversity |",
-                "|---|---:|---:|---:|---:|---:|"]
-        for r in result["labels"]:
-            out.append(f"| {r['label']} | {len(r['items'])} | {r['frames']} | "
-                       f"{_fmt(r.get('frechet_to_real'), 2)} | "
-                       f"{_fmt(r.get('frechet_real_train_to_real'), 2)} | "
-                       f"{_fmt(r.get('diversity'), 2)} |")
-    elif name == "speed":
-        out += ["| agents | frames | seconds | agent-frames/s |", "|---:|---:|---:|---:|"]
-        for r in result["rows"]:
-            out.append(f"| {r['agents']} | {r['frames']} | {_fmt(r['seconds'])} | "
-                       f"{_fmt(r['agent_frames_per_second'], 0)} |")
+    if name in _SECTION_BODIES:
+        out += _SECTION_BODIES[name](result)
     if result.get("reference"):
         out += ["", f"Real reference: {result['reference']}."]
     for figure in result.get("figures", []):

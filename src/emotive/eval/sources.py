@@ -6,8 +6,11 @@ Every generator of the project, and any folder of BVH files, becomes a list of
 * a folder of BVH files (:func:`read_folder`): the intended emotion of each file comes from a
   ``labels.json`` in the folder, else from a Bandai Namco style file name
   (``dataset-N_{content}_{style}_{take}.bvh``);
-* a generator (:class:`Generator`), asked for the standard requests of :func:`standard_requests`
-  (each emotion alone, and emotion transitions, along a figure-8).
+* a generator (:class:`~emotive.models.api.Generator`), asked for the standard requests of
+  :func:`standard_requests` (each emotion alone, and emotion transitions, along a figure-8)
+  that its capabilities allow (:func:`requests_for`);
+* a style-transfer model (:class:`~emotive.models.api.TransferModel`), given clips to render
+  in each emotion (:func:`from_transfer`).
 
 ``labels.json`` maps file names to what was intended::
 
@@ -29,9 +32,9 @@ from __future__ import annotations
 
 import json
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 
@@ -39,7 +42,14 @@ from emotive.core.motion import Motion
 from emotive.data.clips import parse_clip_name
 from emotive.data.emotion import DEFAULT_LABELS, Emotion, EmotionSchedule, canonical_label
 from emotive.errors import EmotionError, EmotiveError, PathError
-from emotive.paths import GroundPath, load_path, waypoints
+from emotive.io.bvh import read_bvh
+from emotive.models.api import (
+    Capabilities,
+    GenerationRequest,
+    Generator,
+    TransferModel,
+)
+from emotive.paths import GroundPath, figure8, load_path, waypoints
 
 #: Name of the intended-emotion file of a folder.
 LABELS_FILE = "labels.json"
@@ -74,48 +84,19 @@ class EvaluatedMotion:
         return np.flatnonzero(np.diff(dominant) != 0) + 1
 
 
-@dataclass(frozen=True)
-class GenerationRequest:
-    """One standard request to a generator.
-
-    Attributes:
-        name: a label for reports.
-        schedule: the intended emotion over time.
-        path: the path to follow.
-        seconds: length of the motion.
-        seed: random seed.
-    """
-
-    name: str
-    schedule: EmotionSchedule
-    path: GroundPath
-    seconds: float
-    seed: int = 0
-
-
-class Generator(Protocol):
-    """What a generator offers the evaluation suite."""
-
-    name: str
-
-    def generate(self, request: GenerationRequest) -> Motion:
-        """The motion for one request, at the generator's output frame rate."""
-        ...
-
-
 def standard_requests(labels: Sequence[str] = DEFAULT_LABELS, seconds: float = 10.0,
                       path: GroundPath | None = None) -> list[GenerationRequest]:
-    """Each label alone, then transitions angry -> happy and sad -> happy, along ``path``
+    """Each label alone, then transitions between labels, along ``path``.
+
+    Each label alone, then transitions angry -> happy and sad -> happy, along ``path``
     (default: a figure-8 of radius 2 m), ``seconds`` long each.
 
     The transitions switch linearly over the middle second.
     """
-    from emotive.paths import figure8
-
     path = path or figure8(2.0)
     requests = [
-        GenerationRequest(label, EmotionSchedule.constant(Emotion.one_hot(label, labels)), path,
-                          seconds)
+        GenerationRequest(label, EmotionSchedule.constant(Emotion.one_hot(label, labels)),
+                          seconds, path)
         for label in labels
     ]
     half = 0.5 * seconds
@@ -125,19 +106,59 @@ def standard_requests(labels: Sequence[str] = DEFAULT_LABELS, seconds: float = 1
                 [{"t": 0.0, "emotion": start}, {"t": half - 0.5, "emotion": start},
                  {"t": half + 0.5, "emotion": end}], labels,
             )
-            requests.append(GenerationRequest(f"{start}-to-{end}", schedule, path, seconds))
+            requests.append(GenerationRequest(f"{start}-to-{end}", schedule, seconds, path))
     return requests
+
+
+def requests_for(capabilities: Capabilities, requests: Sequence[GenerationRequest]
+                 ) -> list[GenerationRequest]:
+    """The requests a generator of ``capabilities`` can honour.
+
+    Without their path when it follows none, without those whose emotion changes (or blends) when it
+    cannot, at most ``max_seconds`` long.
+    """
+    out = []
+    for request in requests:
+        weights = np.asarray(request.schedule.weights)
+        changes = len(weights) > 1 and not np.allclose(weights, weights[0])
+        blended = not np.all(np.isclose(weights.max(-1), 1.0))
+        if (changes and not capabilities.schedules) or (blended and not capabilities.blends):
+            continue
+        out.append(replace(request, path=request.path if capabilities.paths else None,
+                           primer=request.primer if capabilities.primer else None,
+                           seconds=min(request.seconds, capabilities.max_seconds)))
+    return out
 
 
 def from_generator(generator: Generator, requests: Sequence[GenerationRequest]
                    ) -> list[EvaluatedMotion]:
-    """Run the requests through a generator."""
+    """Run the requests through a generator.
+
+    Run the requests through a generator (:class:`~emotive.models.api.Generator`): each
+    motion with the per-frame emotion the generator reports and the path it followed.
+    """
     out = []
     for request in requests:
-        motion = generator.generate(request)
-        intended = request.schedule.sample(motion.fps, num_frames=motion.num_frames)
-        out.append(EvaluatedMotion(request.name, motion, intended, request.schedule.labels,
-                                   request.path.points))
+        made = generator.generate(request)
+        out.append(EvaluatedMotion(request.name, made.motion, made.emotion, made.labels,
+                                   made.path.points if made.path is not None else None))
+    return out
+
+
+def from_transfer(model: TransferModel, clips: Sequence[EvaluatedMotion],
+                  labels: Sequence[str]) -> list[EvaluatedMotion]:
+    """Each clip transferred into each of ``labels`` by a style-transfer model.
+
+    Each clip transferred into each of ``labels`` by a style-transfer model
+    (:class:`~emotive.models.api.TransferModel`), named ``"<clip> -> <label>"``.
+    """
+    out = []
+    for clip in clips:
+        for label in labels:
+            style = EmotionSchedule.constant(Emotion.one_hot(label, labels))
+            made = model.transfer(clip.motion, style)
+            out.append(EvaluatedMotion(f"{clip.name} -> {label}", made.motion, made.emotion,
+                                       made.labels))
     return out
 
 
@@ -174,8 +195,6 @@ def read_folder(folder: str | Path, labels: Sequence[str] = DEFAULT_LABELS
         SourceError: not a folder, no BVH files, a bad ``labels.json``, or unlabelled files.
         BVHError: a file that cannot be read.
     """
-    from emotive.io.bvh import read_bvh
-
     folder = Path(folder)
     if not folder.is_dir():
         raise SourceError(f"{folder} is not a folder of BVH files")

@@ -37,8 +37,10 @@ import numpy as np
 
 from emotive.core.motion import Motion
 from emotive.core.roles import resolve_roles
-from emotive.eval import metrics
-from emotive.eval.classifier import EmotionClassifier
+from emotive.data.clips import load_clips
+from emotive.data.splits import split_clips
+from emotive.eval import distributions, feet, path_following, smoothness, stability
+from emotive.eval.classifier import EmotionClassifier, frame_features
 from emotive.eval.sources import EvaluatedMotion
 from emotive.eval.stats import StatsInputError, anderson_darling_ksamp
 
@@ -84,8 +86,6 @@ AFFECT_FPS = 15.0
 
 def affect_features(motion: Motion) -> np.ndarray:
     """``(T', 26)`` affective and movement features of a clip at :data:`AFFECT_FPS`."""
-    from emotive.eval.classifier import frame_features
-
     points, roles, _ = _points(motion)
     return frame_features(points, roles, motion.fps, AFFECT_FPS)[:, AFFECT_COLUMNS]
 
@@ -98,13 +98,16 @@ def _points(motion: Motion) -> tuple[np.ndarray, object, int]:
 def _energy(motion: Motion) -> np.ndarray:
     """Per-second energy of the joints relative to the root role (Hips on the Bandai rig)."""
     root = motion.skeleton.index(resolve_roles(motion.skeleton).names["root"])
-    return metrics.motion_energy(motion.global_positions(), motion.fps, ENERGY_WINDOW_SECONDS,
-                                 root_index=root)
+    return stability.motion_energy(motion.global_positions(), motion.fps, ENERGY_WINDOW_SECONDS,
+                                   root_index=root)
 
 
 def _bone_parents(motion: Motion) -> np.ndarray:
-    """Parents for the bone-stretch check: a joint whose local translation moves (the hips
-    carrying the world position) is no bone of its parent."""
+    """Parents for the bone-stretch check.
+
+    A joint whose local translation moves (the hips carrying the world position) is no bone of its
+    parent.
+    """
     parents = np.array(motion.skeleton.parents)
     moving = np.ptp(motion.positions, axis=0).max(-1) > 0.05 if motion.num_frames else []
     parents[np.asarray(moving, dtype=bool)] = -1
@@ -112,11 +115,11 @@ def _bone_parents(motion: Motion) -> np.ndarray:
 
 
 def real_reference(labels: Sequence[str], locomotion: bool = True) -> RealReference:
-    """Reference statistics from the dataset-1 clips of ``labels`` (all splits: a reference
-    of what real motion does, not a test set). Needs the data (see :mod:`emotive.data`)."""
-    from emotive.data.clips import load_clips
-    from emotive.data.splits import split_clips
+    """Reference statistics from the dataset-1 clips of ``labels``.
 
+    Reference statistics from the dataset-1 clips of ``labels`` (all splits: a reference
+    of what real motion does, not a test set). Needs the data (see :mod:`emotive.data`).
+    """
     clips = [c for c in load_clips("bandai-namco-1", locomotion=locomotion)
              if c.info.emotion in labels]
     part = {c.name: split for split, members in split_clips(clips).items() for c in members}
@@ -129,9 +132,9 @@ def real_reference(labels: Sequence[str], locomotion: bool = True) -> RealRefere
         if m.duration >= ENERGY_WINDOW_SECONDS:
             energy[clip.info.emotion].append(_energy(m))
         if m.num_frames > 8:
-            jerks.append(metrics.windowed_jerk(points, m.fps))
-            mean_jerk.append(float(metrics.jerk(points, m.fps).mean()))
-        skates.append(float(metrics.foot_skating(points, roles, m.fps).mean_speed))
+            jerks.append(smoothness.windowed_jerk(points, m.fps))
+            mean_jerk.append(float(smoothness.jerk(points, m.fps).mean()))
+        skates.append(float(feet.foot_skating(points, roles, m.fps).mean_speed))
         target = train if part[clip.name] == "train" else held_out
         target[clip.info.emotion].append(affect_features(m))
 
@@ -158,8 +161,11 @@ def _table3(intended: np.ndarray, perceived: np.ndarray) -> dict:
 
 
 def _on_classifier_labels(item: EvaluatedMotion, labels: tuple[str, ...]) -> np.ndarray | None:
-    """The item's intended weights over the classifier's labels, or ``None`` if it intends
-    labels the classifier does not know."""
+    """The item's intended weights over the classifier's labels, or ``None``.
+
+    The item's intended weights over the classifier's labels, or ``None`` if it intends
+    labels the classifier does not know.
+    """
     index = {label: k for k, label in enumerate(item.labels)}
     foreign = [k for label, k in index.items() if label not in labels]
     if foreign and item.intended[:, foreign].max() > 1e-6:
@@ -235,8 +241,8 @@ def transition_suite(items: Sequence[EvaluatedMotion], classifier: EmotionClassi
         }
         if reference is not None:
             points, _, _ = _points(item.motion)
-            smooth = metrics.transition_smoothness(points, item.motion.fps, changes,
-                                                   reference.window_jerk)
+            smooth = smoothness.transition_smoothness(points, item.motion.fps, changes,
+                                                      reference.window_jerk)
             row["jerk"] = np.asarray(smooth.jerk).tolist()
             row["jerk_percentile"] = np.asarray(smooth.percentile).tolist()
             row["smooth"] = not bool(np.any(smooth.exceeds))
@@ -252,7 +258,7 @@ def path_suite(items: Sequence[EvaluatedMotion]) -> dict:
         if item.path is None:
             continue
         points, roles, _ = _points(item.motion)
-        result = metrics.path_following(points, roles, item.path)
+        result = path_following.path_following(points, roles, item.path)
         rows.append({
             "name": item.name,
             "mean_position_deviation": float(result.position_deviation.mean()),
@@ -278,7 +284,7 @@ def longrun_suite(items: Sequence[EvaluatedMotion], reference: RealReference | N
         label = item.labels[int(item.intended.mean(0).argmax())]
         real = reference.energy if reference is not None else {}
         ref_level = float(np.median(real[label])) if len(real.get(label, [])) else None
-        report = metrics.stability_report(
+        report = stability.stability_report(
             item.motion.global_positions(), item.motion.fps, _bone_parents(item.motion),
             reference_energy=ref_level, window_s=ENERGY_WINDOW_SECONDS,
             root_index=item.motion.skeleton.index(resolve_roles(item.motion.skeleton)
@@ -305,12 +311,12 @@ def quality_suite(items: Sequence[EvaluatedMotion], reference: RealReference | N
     rows = []
     for item in items:
         points, roles, _ = _points(item.motion)
-        skate = metrics.foot_skating(points, roles, item.motion.fps)
-        depth = metrics.ground_penetration(points, roles)
+        skate = feet.foot_skating(points, roles, item.motion.fps)
+        depth = feet.ground_penetration(points, roles)
         rows.append({
             "name": item.name, "skate_speed": float(skate.mean_speed),
             "skate_ratio": float(skate.ratio), "penetration_max": float(depth.max),
-            "jerk": float(metrics.jerk(points, item.motion.fps).mean())
+            "jerk": float(smoothness.jerk(points, item.motion.fps).mean())
             if item.motion.num_frames > 3 else None,
         })
     mean_skate = float(np.mean([r["skate_speed"] for r in rows])) if rows else None
@@ -340,10 +346,10 @@ def affect_suite(items: Sequence[EvaluatedMotion], reference: RealReference | No
         real = reference.held_out.get(label) if reference is not None else None
         train = reference.train.get(label) if reference is not None else None
         if real is not None and len(real) >= 2 and len(frames) >= 2:
-            row["frechet_to_real"] = metrics.frechet_distance(frames, real)
+            row["frechet_to_real"] = distributions.frechet_distance(frames, real)
             if train is not None and len(train) >= 2:
-                row["frechet_real_train_to_real"] = metrics.frechet_distance(train, real)
+                row["frechet_real_train_to_real"] = distributions.frechet_distance(train, real)
         if len(members) >= 2:
-            row["diversity"] = metrics.diversity(np.stack([f.mean(0) for _, f in members]))
+            row["diversity"] = distributions.diversity(np.stack([f.mean(0) for _, f in members]))
         rows.append(row)
     return {"labels": rows, "reference": reference.source if reference else None}

@@ -5,8 +5,9 @@ frames (at 10 fps, 1.8 s), the model predicts the next 42 frames (4.2 s) keeping
 emotion as the desired one, and the prediction is compared with the recording by the pose error
 relative to the character's bounding-box diagonal and the joint rotation error in degrees.
 :func:`table1` runs that protocol on clips of any length and reports, per model, the mean and
-standard deviation over windows of :func:`~emotive.eval.metrics.pose_error`,
-:func:`~emotive.eval.metrics.rotation_error` and :func:`~emotive.eval.metrics.euler_angle_error`.
+standard deviation over windows of :func:`~emotive.eval.pose_errors.pose_error`,
+:func:`~emotive.eval.pose_errors.rotation_error` and
+:func:`~emotive.eval.pose_errors.euler_angle_error`.
 
 Choices where the paper is silent or its data differ from ours:
 
@@ -27,7 +28,7 @@ Choices where the paper is silent or its data differ from ours:
   rotation channels, which the rig fixes at the identity.
 * Pose error. Root-relative world positions of the body joints (the root itself left out) and
   the target's bounding-box diagonal over the predicted frames, as documented in
-  :func:`~emotive.eval.metrics.pose_error`: the pose is judged apart from the trajectory.
+  :func:`~emotive.eval.pose_errors.pose_error`: the pose is judged apart from the trajectory.
 * Averages. Each error of a window is its mean over the predicted frames and joints; the
   table reports the mean and standard deviation of these over windows, each window weighing
   the same (so long clips, which give more windows, weigh more than short ones).
@@ -36,8 +37,9 @@ Choices where the paper is silent or its data differ from ours:
   model; they are skipped and listed in :attr:`Table1Result.skipped_label` (pass
   :data:`emotive.data.emotion.ALL_LABELS` to keep every style).
 
-The paper's predictions follow "the trajectory of the ground truth data"; :class:`Predictor`
-has no trajectory input yet, so path-following models see only the primer.
+The paper's predictions follow "the trajectory of the ground truth data"; a
+:class:`~emotive.models.api.Predictor` (re-exported here) has no trajectory input yet, so
+path-following models see only the primer.
 
 Shapes: ``B`` windows, ``T`` frames, ``J`` joints, ``C`` emotion labels.
 """
@@ -48,9 +50,11 @@ import math
 import numbers
 from collections.abc import Iterable, Sequence
 from dataclasses import asdict, dataclass, field
-from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+from emotive.models.api import Predictor
 
 if TYPE_CHECKING:
     from emotive.core import Motion, Skeleton
@@ -77,35 +81,6 @@ ERRORS: tuple[str, ...] = ("pose", "rotation", "euler")
 # emotive.data.emotion.DEFAULT_LABELS, repeated so that importing this module loads no SciPy
 # (the tests check that the two agree).
 _DEFAULT_LABELS: tuple[str, ...] = ("happy", "sad", "angry", "neutral")
-
-
-@runtime_checkable
-class Predictor(Protocol):
-    """A motion-prediction model as :func:`table1` evaluates it.
-
-    Attributes:
-        name: the model's name in the table; unique among the predictors of one run.
-    """
-
-    name: str
-
-    def predict(
-        self, primer: Motion, frames: int, emotion: np.ndarray, labels: tuple[str, ...]
-    ) -> Motion:
-        """The ``frames`` frames that follow ``primer``.
-
-        Args:
-            primer: the observed motion, ``T`` frames at the evaluation rate (a copy: the
-                predictor may keep or change it).
-            frames: number of frames to predict, ``T'``.
-            emotion: ``(C,)`` desired emotion, non-negative weights summing to one.
-            labels: the ``C`` labels of ``emotion``.
-
-        Returns:
-            The continuation alone: rotations ``(T', J, 4)``, positions ``(T', J, 3)``, on the
-            primer's skeleton (same joints) at the primer's ``fps``.
-        """
-        ...
 
 
 @dataclass(frozen=True)
@@ -147,12 +122,12 @@ class ErrorStats:
     """Errors of a set of windows: mean and standard deviation (``ddof = 0``) over windows.
 
     Attributes:
-        pose: mean :func:`~emotive.eval.metrics.pose_error`, a fraction of the character's
+        pose: mean :func:`~emotive.eval.pose_errors.pose_error`, a fraction of the character's
             bounding-box diagonal.
         pose_std: its standard deviation.
-        rotation: mean geodesic :func:`~emotive.eval.metrics.rotation_error`, degrees.
+        rotation: mean geodesic :func:`~emotive.eval.pose_errors.rotation_error`, degrees.
         rotation_std: its standard deviation.
-        euler: mean :func:`~emotive.eval.metrics.euler_angle_error`, degrees.
+        euler: mean :func:`~emotive.eval.pose_errors.euler_angle_error`, degrees.
         euler_std: its standard deviation.
         windows: number of windows.
         clips: number of clips they come from.
@@ -244,8 +219,11 @@ class Table1Result:
         raise KeyError(f"no predictor {name!r}; predictors: {[s.name for s in self.scores]}")
 
     def rows(self, digits: int = 3) -> list[tuple[str, str, str, str, int]]:
-        """Table 1 rows: predictor, pose error, rotation error, Euler error (``mean ± std``,
-        ``digits`` decimals) and number of windows."""
+        """Table 1 rows.
+
+        Predictor, pose error, rotation error, Euler error (``mean ± std``, ``digits`` decimals) and
+        number of windows.
+        """
         def cell(mean: float, std: float) -> str:
             return f"{mean:.{digits}f} ± {std:.{digits}f}"
 
@@ -257,8 +235,7 @@ class Table1Result:
         return rows
 
     def to_dict(self) -> dict:
-        """JSON-ready summary: settings, and per predictor the overall and per-emotion
-        statistics."""
+        """JSON-ready summary: settings, and per predictor overall and per-emotion statistics."""
         return {
             "fps": self.fps, "primer_frames": self.primer_frames,
             "predicted_frames": self.predicted_frames, "windows": self.windows,
@@ -321,9 +298,13 @@ def _clip_name(clip: Any, i: int) -> str:
 
 
 def _body(skeleton: Skeleton, root: str | None) -> tuple[np.ndarray, np.ndarray, list[str]]:
-    """Indices of the body joints (root first, then its descendants), of those with rotation
-    channels, and the latter's Euler orders."""
-    from emotive.core.roles import match_roles
+    """Indices of the body joints and rotation channels, and the Euler orders.
+
+    Indices of the body joints (root first, then its descendants), of those with rotation
+    channels, and the latter's Euler orders.
+    """
+    # Deferred: importing this module stays free of torch and scipy (test_table1.py).
+    from emotive.core.roles import match_roles  # noqa: PLC0415
 
     if root is None:
         r = match_roles(skeleton)[1].get("root", 0)
@@ -348,7 +329,8 @@ def _body(skeleton: Skeleton, root: str | None) -> tuple[np.ndarray, np.ndarray,
 
 
 def _check_prediction(pred: Any, primer: Motion, frames: int, name: str) -> Motion:
-    from emotive.core import Motion
+    # Deferred: importing this module stays free of torch and scipy (test_table1.py).
+    from emotive.core import Motion  # noqa: PLC0415
 
     if not isinstance(pred, Motion):
         raise ValueError(f"predictor {name!r} returned {type(pred).__name__}, not a Motion")
@@ -367,6 +349,53 @@ def _check_prediction(pred: Any, primer: Motion, frames: int, name: str) -> Moti
 
 
 # ------------------------------------------------------------------------------ protocol
+
+
+def _check_protocol(
+    fps: float,
+    primer_frames: int | None,
+    predicted_frames: int | None,
+    stride_seconds: float,
+    labels: Sequence[str],
+) -> tuple[float, int, int, int, tuple[str, ...]]:
+    """Check :func:`table1`'s protocol arguments and resolve them to frame counts.
+
+    Args:
+        fps: evaluation frame rate.
+        primer_frames: frames shown, or ``None`` for :data:`PRIMER_SECONDS`.
+        predicted_frames: frames predicted, or ``None`` for :data:`PREDICTED_SECONDS`.
+        stride_seconds: time between window starts.
+        labels: the emotion labels of the predictors.
+
+    Returns:
+        ``(fps, primer frames, predicted frames, stride frames, labels)``.
+
+    Raises:
+        ValueError: a bad rate, frame count, stride or label.
+    """
+    # Deferred: importing this module stays free of torch and scipy (test_table1.py).
+    from emotive.data.emotion import check_labels  # noqa: PLC0415
+    from emotive.errors import EmotionError  # noqa: PLC0415
+
+    if isinstance(fps, bool) or not isinstance(fps, numbers.Real) or not (
+        math.isfinite(fps) and fps > 0
+    ):
+        raise ValueError(f"fps must be a positive finite number, got {fps!r}")
+    fps = float(fps)
+    n_primer = _frame_count(primer_frames, PRIMER_SECONDS, fps, "primer_frames")
+    n_pred = _frame_count(predicted_frames, PREDICTED_SECONDS, fps, "predicted_frames")
+    if isinstance(stride_seconds, bool) or not isinstance(stride_seconds, numbers.Real) or not (
+        math.isfinite(stride_seconds) and stride_seconds > 0
+    ):
+        raise ValueError(f"stride_seconds must be a positive number, got {stride_seconds!r}")
+    stride = math.floor(stride_seconds * fps + 0.5)
+    if stride < 1:
+        raise ValueError(f"stride_seconds={stride_seconds} is less than one frame at {fps} fps")
+    try:
+        checked = check_labels(labels)
+    except EmotionError as exc:
+        raise ValueError(f"bad labels: {exc}") from None
+    return fps, n_primer, n_pred, stride, checked
 
 
 def table1(
@@ -410,33 +439,19 @@ def table1(
             stride, label or root, no clip long enough for one window, or a prediction of the
             wrong length, rig or rate.
     """
-    from emotive.core.ops import resample
-    from emotive.data.emotion import Emotion, canonical_label, check_labels
-    from emotive.data.windows import window_starts
-    from emotive.errors import EmotionError
-    from emotive.eval.metrics import euler_angle_error, pose_error, rotation_error
-    from emotive.transforms.kinematics import forward_kinematics_np
+    # Deferred: importing this module stays free of torch and scipy (test_table1.py).
+    from emotive.core.ops import resample  # noqa: PLC0415
+    from emotive.data.emotion import Emotion, canonical_label  # noqa: PLC0415
+    from emotive.data.windows import window_starts  # noqa: PLC0415
+    from emotive.errors import EmotionError  # noqa: PLC0415
+    from emotive.eval.pose_errors import euler_angle_error, pose_error, rotation_error  # noqa: PLC0415
+    from emotive.transforms.kinematics import forward_kinematics_np  # noqa: PLC0415
 
     models = _check_predictors(predictors)
-    if isinstance(fps, bool) or not isinstance(fps, numbers.Real) or not (
-        math.isfinite(fps) and fps > 0
-    ):
-        raise ValueError(f"fps must be a positive finite number, got {fps!r}")
-    fps = float(fps)
-    n_primer = _frame_count(primer_frames, PRIMER_SECONDS, fps, "primer_frames")
-    n_pred = _frame_count(predicted_frames, PREDICTED_SECONDS, fps, "predicted_frames")
+    fps, n_primer, n_pred, stride, labels = _check_protocol(
+        fps, primer_frames, predicted_frames, stride_seconds, labels
+    )
     length = n_primer + n_pred
-    if isinstance(stride_seconds, bool) or not isinstance(stride_seconds, numbers.Real) or not (
-        math.isfinite(stride_seconds) and stride_seconds > 0
-    ):
-        raise ValueError(f"stride_seconds must be a positive number, got {stride_seconds!r}")
-    stride = math.floor(stride_seconds * fps + 0.5)
-    if stride < 1:
-        raise ValueError(f"stride_seconds={stride_seconds} is less than one frame at {fps} fps")
-    try:
-        labels = check_labels(labels)
-    except EmotionError as exc:
-        raise ValueError(f"bad labels: {exc}") from None
     clips = list(clips)
     if not clips:
         raise ValueError("no clips to evaluate: pass held-out clips, e.g. split_clips(...)['test']")

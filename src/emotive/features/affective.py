@@ -1,5 +1,7 @@
-"""The 18 pose affective features of Emotive Gaits (section 3.2.3): 11 angles, 4 distance
-ratios and 3 area ratios per frame, as one differentiable torch kernel with a NumPy wrapper.
+"""The 18 pose affective features of Emotive Gaits (section 3.2.3).
+
+11 angles, 4 distance ratios and 3 area ratios per frame, as one differentiable torch kernel with a
+NumPy wrapper.
 
 Legend: ``...`` any leading (batch, time) dimensions, ``R`` the :data:`AFFECTIVE_ROLES`
 positions, ``J + E`` joints followed by end sites (see

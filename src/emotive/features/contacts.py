@@ -112,8 +112,11 @@ def _hysteresis(on: np.ndarray, off: np.ndarray) -> np.ndarray:
 
 
 def _clean_runs(mask: np.ndarray, min_contact: int, min_gap: int) -> np.ndarray:
-    """Fill interior gaps shorter than ``min_gap`` frames, then drop runs shorter than
-    ``min_contact`` frames, in a ``(T,)`` bool mask."""
+    """Fill short gaps, then drop short runs, in a ``(T,)`` bool mask.
+
+    Fill interior gaps shorter than ``min_gap`` frames, then drop runs shorter than
+    ``min_contact`` frames, in a ``(T,)`` bool mask.
+    """
     mask = mask.copy()
     labels, count = ndimage.label(~mask)
     if count:
@@ -130,8 +133,9 @@ def _clean_runs(mask: np.ndarray, min_contact: int, min_gap: int) -> np.ndarray:
 
 def ground_heights(feet: np.ndarray, thresholds: ContactThresholds | None = None,
                    up_axis: int = 1) -> np.ndarray:
-    """``(T, P)`` height of each foot point above its own ground: its ``ground_percentile``
-    height over the clip.
+    """``(T, P)`` height of each foot point above its own ground.
+
+    Its ``ground_percentile`` height over the clip.
 
     Args:
         feet: ``(T, P, 3)`` world positions of the foot points (e.g. the heels and toes of

@@ -319,6 +319,12 @@ def _retry(
         sol: the first solution.
         posture: ``(T, k, 4)`` posture of the solve.
         init: ``(T, k, 4)`` initial pose of the solve.
+        damping: DLS damping, as in :func:`solve_chain`.
+        posture_gain: posture gain, as in :func:`solve_chain`.
+        max_iter: iteration cap of the backward retry.
+        retry_iter: iteration cap of the retries that solve each frame alone.
+        tol: target tolerance in metres, as in :func:`solve_chain`.
+        above: residual in metres above which a frame is solved again.
     """
     bad = np.flatnonzero(sol.residual > above)
     if not len(bad):

@@ -107,6 +107,59 @@ def _read_text(path: Path) -> str:
             raise BVHError(path, None, "is not a text file") from None
 
 
+def _parse_channels(tokens: _Tokens, name: str) -> tuple[str, ...]:
+    """The channels of joint ``name``, read after its ``CHANNELS`` keyword."""
+    chan_line = tokens.items[tokens.pos - 1][1]
+    count_tok = tokens.next("the channel count")
+    if count_tok not in ("3", "6"):
+        tokens.pos -= 1
+        raise tokens.error(
+            f"joint '{name}' has CHANNELS {count_tok}: only 3 (rotations) or "
+            "6 (positions and rotations) channels per joint are supported"
+        )
+    chans = tuple(tokens.next("a channel name") for _ in range(int(count_tok)))
+    bad = [c for c in chans if c not in _VALID_CHANNELS]
+    rot = [c for c in chans if c in ROTATION_CHANNELS]
+    if bad or len(set(chans)) != len(chans) or len(set(rot)) != 3:
+        raise BVHError(
+            tokens.path, chan_line,
+            f"joint '{name}' has invalid channels {' '.join(chans)}: use three "
+            "distinct rotation channels (and optionally the three position channels)"
+        )
+    return chans
+
+
+def _parse_end_site(tokens: _Tokens, name: str) -> np.ndarray:
+    """The ``(3,)`` offset of an end site of joint ``name``, read after its ``End`` keyword."""
+    tokens.expect("Site")
+    tokens.expect("{")
+    tokens.expect("OFFSET")
+    offset = np.array([tokens.number(f"End Site OFFSET of '{name}'") for _ in range(3)])
+    tokens.expect("}")
+    return offset
+
+
+def _unexpected_in_joint(tokens: _Tokens, tok: str, name: str) -> BVHError:
+    """The error for token ``tok`` where the body of joint ``name`` expects a keyword."""
+    if tok in ("MOTION", "ROOT"):
+        return tokens.error(
+            f"joint '{name}' is not closed: a '}}' is missing before {tok} "
+            "(unbalanced braces)"
+        )
+    return tokens.error(f"unexpected '{tok}' in joint '{name}'")
+
+
+def _expect_motion(tokens: _Tokens) -> None:
+    """Check that the ``MOTION`` part follows the (single) hierarchy."""
+    nxt = tokens.peek()
+    if nxt == "ROOT":
+        raise tokens.error("several ROOT joints: only one hierarchy per file is supported")
+    if nxt != "MOTION":
+        if nxt is None:
+            raise tokens.error("the MOTION part is missing: the file ends after the hierarchy")
+        raise tokens.error(f"expected 'MOTION' after the hierarchy but found '{nxt}'")
+
+
 def _parse_hierarchy(tokens: _Tokens) -> list[_Joint]:
     if tokens.peek() is None:
         raise tokens.error("the file is empty: a BVH file starts with HIERARCHY")
@@ -140,58 +193,23 @@ def _parse_hierarchy(tokens: _Tokens) -> list[_Joint]:
             if tok == "OFFSET":
                 joint.offset = np.array([tokens.number(f"OFFSET of '{name}'") for _ in range(3)])
             elif tok == "CHANNELS":
-                chan_line = tokens.items[tokens.pos - 1][1]
-                count_tok = tokens.next("the channel count")
-                if count_tok not in ("3", "6"):
-                    tokens.pos -= 1
-                    raise tokens.error(
-                        f"joint '{name}' has CHANNELS {count_tok}: only 3 (rotations) or "
-                        "6 (positions and rotations) channels per joint are supported"
-                    )
-                chans = tuple(tokens.next("a channel name") for _ in range(int(count_tok)))
-                bad = [c for c in chans if c not in _VALID_CHANNELS]
-                rot = [c for c in chans if c in ROTATION_CHANNELS]
-                if bad or len(set(chans)) != len(chans) or len(set(rot)) != 3:
-                    raise BVHError(
-                        tokens.path, chan_line,
-                        f"joint '{name}' has invalid channels {' '.join(chans)}: use three "
-                        "distinct rotation channels (and optionally the three position channels)"
-                    )
-                joint.channels = chans
+                joint.channels = _parse_channels(tokens, name)
             elif tok == "JOINT":
                 parse_joint(me)
             elif tok == "End":
-                tokens.expect("Site")
-                tokens.expect("{")
-                tokens.expect("OFFSET")
-                joint.end_sites.append(
-                    np.array([tokens.number(f"End Site OFFSET of '{name}'") for _ in range(3)])
-                )
-                tokens.expect("}")
+                joint.end_sites.append(_parse_end_site(tokens, name))
             elif tok == "}":
                 break
-            elif tok in ("MOTION", "ROOT"):
-                tokens.pos -= 1
-                raise tokens.error(
-                    f"joint '{name}' is not closed: a '}}' is missing before {tok} "
-                    "(unbalanced braces)"
-                )
             else:
                 tokens.pos -= 1
-                raise tokens.error(f"unexpected '{tok}' in joint '{name}'")
+                raise _unexpected_in_joint(tokens, tok, name)
         if joint.offset is None:
             raise BVHError(tokens.path, line, f"joint '{name}' has no OFFSET")
         if not joint.channels:
             raise BVHError(tokens.path, line, f"joint '{name}' has no CHANNELS")
 
     parse_joint(-1)
-    nxt = tokens.peek()
-    if nxt == "ROOT":
-        raise tokens.error("several ROOT joints: only one hierarchy per file is supported")
-    if nxt != "MOTION":
-        if nxt is None:
-            raise tokens.error("the MOTION part is missing: the file ends after the hierarchy")
-        raise tokens.error(f"expected 'MOTION' after the hierarchy but found '{nxt}'")
+    _expect_motion(tokens)
     return joints
 
 

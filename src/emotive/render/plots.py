@@ -71,8 +71,8 @@ def plot_features(
             f"{len(affective_names)} names, movement {movement.shape} with "
             f"{len(movement_names)} names, contacts {contacts.shape}"
         )
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
+    from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: PLC0415 (heavy: matplotlib)
+    from matplotlib.figure import Figure  # noqa: PLC0415 (heavy: matplotlib)
 
     path = Path(path)
     kinds = np.asarray(affective_kinds)

@@ -23,6 +23,8 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
+from rich.console import Console
+from rich.progress import track
 from scipy.ndimage import uniform_filter1d
 
 from emotive.core.motion import Motion
@@ -59,8 +61,10 @@ class PreviewError(EmotiveError):
 
 
 def _azimuth(ground: np.ndarray) -> float:
-    """Camera azimuth in degrees for a ``(T, 2)`` ``(x, z)`` ground track: a 3/4 front view of
-    its principal direction, oriented by the net displacement."""
+    """Camera azimuth in degrees for a ``(T, 2)`` ``(x, z)`` ground track.
+
+    A 3/4 front view of its principal direction, oriented by the net displacement.
+    """
     centred = ground - ground.mean(0)
     if len(ground) < 2 or np.ptp(ground, axis=0).max() < 0.5:
         return AZIMUTH_DEG
@@ -163,11 +167,9 @@ def render_preview(
         PreviewError: unknown suffix, missing folder, empty clip, or captions of the wrong
             length.
     """
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.collections import LineCollection
-    from matplotlib.figure import Figure
-    from rich.console import Console
-    from rich.progress import track
+    from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: PLC0415 (heavy: matplotlib)
+    from matplotlib.collections import LineCollection  # noqa: PLC0415 (heavy: matplotlib)
+    from matplotlib.figure import Figure  # noqa: PLC0415 (heavy: matplotlib)
 
     out = Path(out)
     suffix = out.suffix.lower()
@@ -232,7 +234,7 @@ def render_preview(
         ax.text(0.98, 0.97, title, transform=ax.transAxes, va="top", ha="right", fontsize=10)
 
     with atomic_output(out) as tmp:
-        import imageio_ffmpeg
+        import imageio_ffmpeg  # noqa: PLC0415 (heavy: imageio_ffmpeg)
 
         writer = imageio_ffmpeg.write_frames(str(tmp), (width, height), fps=rate,
                                              **_ffmpeg_options(suffix))

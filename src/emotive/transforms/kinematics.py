@@ -157,8 +157,10 @@ class PoseFK:
         )
 
     def __call__(self, rotations: torch.Tensor | np.ndarray) -> torch.Tensor | np.ndarray:
-        """``(B, J + E, 3)`` world positions of ``(B, J, 4)`` local unit quaternions: a
-        tensor of the class's dtype for a tensor, float64 NumPy for NumPy."""
+        """``(B, J + E, 3)`` world positions of ``(B, J, 4)`` local unit quaternions.
+
+        A tensor of the class's dtype for a tensor, float64 NumPy for NumPy.
+        """
         if isinstance(rotations, np.ndarray):
             tree, local, cat = self._numpy, qmatrix(rotations), np.concatenate
             world_r = np.empty((rotations.shape[0], self.num_joints, 3, 3))

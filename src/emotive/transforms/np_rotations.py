@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import numpy as np
+
 from emotive.transforms import rotations as _r
 from emotive.transforms.numpy_bridge import numpy_kernel
 
@@ -45,8 +47,6 @@ def quaternion_mean(q, axis: int = 0):
         The quaternions with ``axis`` removed, ``(..., 4)``; NaN where an input along ``axis``
         is not finite (as the other kernels, NaN in gives NaN out).
     """
-    import numpy as np
-
     q = np.moveaxis(np.asarray(q, dtype=np.float64), axis, 0)
     scatter = np.einsum("n...i,n...k->...ik", q, q)
     bad = ~np.isfinite(scatter).all((-1, -2))

@@ -101,7 +101,8 @@ def quaternion_continuity(q: torch.Tensor, dim: int = 0) -> torch.Tensor:
     """Flip signs along ``dim`` so consecutive quaternions lie in the same hemisphere.
 
     Args:
-        q: ``(..., 4)`` quaternions; ``dim`` indexes a leading (time) dimension.
+        q: ``(..., 4)`` quaternions.
+        dim: the leading (time) dimension along which to make them continuous.
 
     Returns:
         Quaternions of the same shape representing the same rotations, with
@@ -128,7 +129,8 @@ def quaternion_slerp(a: torch.Tensor, b: torch.Tensor, t: torch.Tensor | float) 
     """Spherical linear interpolation between unit quaternions along the shorter arc.
 
     Args:
-        a, b: ``(..., 4)`` unit quaternions.
+        a: ``(..., 4)`` unit quaternions, the start.
+        b: ``(..., 4)`` unit quaternions, the end.
         t: interpolation weights broadcastable to ``(...,)``; 0 gives ``a``, 1 gives ``b``.
 
     Returns:

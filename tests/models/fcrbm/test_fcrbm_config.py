@@ -6,7 +6,7 @@ import json
 
 import pytest
 
-from emotive.models.fcrbm.model import FCRBMConfig
+from emotive.models.fcrbm.config import FCRBMConfig
 
 
 def test_defaults_are_the_papers_model() -> None:

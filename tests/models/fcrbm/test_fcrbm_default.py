@@ -9,6 +9,8 @@ import pytest
 from test_fcrbm_pipeline import invoke_fcrbm
 
 from emotive.io.bvh import read_bvh
+from emotive.models.fcrbm.checkpoint import EXPORTED_KEYS, load_fcrbm_checkpoint
+from emotive.models.fcrbm.config import FCRBMConfig
 from emotive.models.fcrbm.generate import (
     constant_context,
     default_checkpoint_path,
@@ -16,13 +18,7 @@ from emotive.models.fcrbm.generate import (
     generate_motion,
     load_fcrbm_model,
 )
-from emotive.models.fcrbm.model import FCRBMConfig
-from emotive.models.fcrbm.training import (
-    EXPORTED_KEYS,
-    FCRBMTrainSettings,
-    load_fcrbm_checkpoint,
-    load_fcrbm_settings,
-)
+from emotive.models.fcrbm.training import FCRBMTrainSettings, load_fcrbm_settings
 
 REPO = Path(__file__).resolve().parents[3]
 

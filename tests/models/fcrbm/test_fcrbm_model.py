@@ -7,13 +7,8 @@ from dataclasses import replace
 import pytest
 import torch
 
-from emotive.models.fcrbm.model import (
-    CONTEXT_FEATURES,
-    FCRBM,
-    RBF_CENTRES,
-    FCRBMConfig,
-    sliding_windows,
-)
+from emotive.models.fcrbm.config import CONTEXT_FEATURES, FCRBMConfig
+from emotive.models.fcrbm.model import FCRBM, RBF_CENTRES, sliding_windows
 
 B, N, D, H, C = 5, 3, 4, 6, 2
 

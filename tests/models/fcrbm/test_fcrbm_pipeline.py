@@ -12,7 +12,9 @@ import torch
 from cli_helpers import assert_failed_cleanly
 from emotive.core import Motion, Skeleton
 from emotive.core.ops import canonicalize_facing
-from emotive.errors import DataError, EmotionError, RigError
+from emotive.errors import ConfigError, DataError, EmotionError, RigError
+from emotive.models.fcrbm.checkpoint import export_fcrbm_checkpoint, load_fcrbm_checkpoint
+from emotive.models.fcrbm.config import FCRBMConfig
 from emotive.models.fcrbm.data import FrameCodec, clip_context, frame_vectors, step_rate
 from emotive.models.fcrbm.generate import (
     FCRBMDivergedError,
@@ -26,7 +28,7 @@ from emotive.models.fcrbm.generate import (
     schedule_context,
     seed_frames,
 )
-from emotive.models.fcrbm.model import FCRBM, FCRBMConfig
+from emotive.models.fcrbm.model import FCRBM
 from emotive.models.fcrbm.training import (
     ENERGY_CLIP,
     ENERGY_SPREAD,
@@ -34,12 +36,9 @@ from emotive.models.fcrbm.training import (
     FCRBMData,
     FCRBMTrainSettings,
     edge_energy_contexts,
-    export_fcrbm_checkpoint,
-    load_fcrbm_checkpoint,
     load_fcrbm_settings,
     train_fcrbm,
 )
-from emotive.models.gait.training import ConfigError
 from emotive.transforms.np_rotations import axis_angle_to_quaternion
 from rigs import RIG
 
@@ -204,7 +203,7 @@ def test_training_writes_checkpoints_resumes_and_generates(tmp_path):
     more = train_fcrbm(config, replace(settings, epochs=3), progress=False, out_dir=tmp_path,
                        data=data, resume=True)
     assert [r["epoch"] for r in more.history] == [1, 2, 3]
-    with pytest.raises(ConfigError, match="other settings"):
+    with pytest.raises(ConfigError, match=r"other \[train\] settings"):
         train_fcrbm(config, replace(settings, batch_size=7, epochs=4), progress=False,
                     out_dir=tmp_path, data=data, resume=True)
     network, codec, _ = load_fcrbm_checkpoint(tmp_path / "last.pt")
@@ -255,7 +254,7 @@ def test_rbf_context_features_train_resume_and_generate(tmp_path):
     more = train_fcrbm(config, replace(settings, epochs=2), progress=False, out_dir=tmp_path,
                        data=data, resume=True)
     assert [r["epoch"] for r in more.history] == [1, 2]
-    with pytest.raises(ConfigError, match="other settings"):
+    with pytest.raises(ConfigError, match=r"another \[model\] config"):
         train_fcrbm(replace(config, context_features="linear"), replace(settings, epochs=3),
                     progress=False, out_dir=tmp_path, data=data, resume=True)
     network, codec, _ = load_fcrbm_checkpoint(tmp_path / "last.pt")
@@ -354,10 +353,10 @@ def contacts_at(strikes: list[int], frames: int) -> np.ndarray:
 
 
 def test_step_rate_is_the_rate_between_the_strikes_around_each_frame(monkeypatch):
-    import emotive.features.contacts
+    from emotive.models.fcrbm import data as fcrbm_data
 
     strikes = [*range(15, 91, 15), *range(100, 171, 10)]  # 2 steps/s, then 3
-    monkeypatch.setattr(emotive.features.contacts, "foot_contacts",
+    monkeypatch.setattr(fcrbm_data, "foot_contacts",
                         lambda positions, roles, fps: contacts_at(strikes, len(positions)))
     motion = walk(180)
     codec = FrameCodec.fit([frame_vectors(motion)], [motion])
@@ -415,9 +414,9 @@ def energetic_data() -> FCRBMData:
 @pytest.fixture
 def stepping(monkeypatch):
     """Foot contacts from :func:`stride_contacts`: the synthetic walks' feet slide."""
-    import emotive.features.contacts
+    from emotive.models.fcrbm import data as fcrbm_data
 
-    monkeypatch.setattr(emotive.features.contacts, "foot_contacts", stride_contacts)
+    monkeypatch.setattr(fcrbm_data, "foot_contacts", stride_contacts)
 
 
 def test_edge_energy_raises_only_the_high_edge_style_by_how_fast_it_steps(stepping):
@@ -497,19 +496,19 @@ def test_generate_command_writes_bvh_and_preview(checkpoint, tmp_path):
     from emotive.io.bvh import read_bvh
 
     out, video = tmp_path / "walk.bvh", tmp_path / "walk.gif"
-    result = invoke_fcrbm("generate", "--model", checkpoint, "--valence", 2.5, "--arousal", 3,
+    result = invoke_fcrbm("generate", "--model", checkpoint, "--valence", 0.5, "--arousal", 1,
                           "--seconds", 1, "--out", out, "--preview", video)
     assert result.exit_code == 0, result.output
-    assert "valence/arousal [2.5, 3.0]" in result.output
+    assert result.output.startswith("deprecated: `emotive fcrbm generate`")
     motion = read_bvh(out)
     assert motion.num_frames == 30 and np.isfinite(motion.positions).all()
     assert video.stat().st_size > 0
     schedule = tmp_path / "s.json"
-    schedule.write_text(json.dumps([{"t": 0, "emotion": "sad"}, {"t": 1, "valence": 3,
-                                                                "arousal": 3}]))
+    schedule.write_text(json.dumps([{"t": 0, "emotion": "sad"}, {"t": 1, "valence": 1,
+                                                                "arousal": 1}]))
     result = invoke_fcrbm("generate", "--model", checkpoint, "--schedule", schedule,
                           "--seconds", 1, "--out", tmp_path / "t.bvh")
-    assert result.exit_code == 0 and " to [" in result.output, result.output
+    assert result.exit_code == 0, result.output
     result = invoke_fcrbm("generate", "--model", checkpoint, "--emotion", "happy",
                           "--seconds", 0.5, "--out", tmp_path / "h.bvh")
     assert result.exit_code == 0, result.output
@@ -518,15 +517,16 @@ def test_generate_command_writes_bvh_and_preview(checkpoint, tmp_path):
 @pytest.mark.parametrize(
     ("args", "error", "words"),
     [
-        (["--valence", 2, "--emotion", "sad"], FCRBMInputError, ["exactly one", "--emotion"]),
-        (["--valence", 2], FCRBMInputError, ["both --valence and --arousal"]),
-        ([], FCRBMInputError, ["exactly one"]),
-        (["--valence", "nan", "--arousal", 2], FCRBMInputError, ["valence and arousal"]),
-        (["--valence", 9, "--arousal", 2], FCRBMInputError, ["[0.25, 5]"]),
+        (["--valence", 0, "--emotion", "sad"], EmotionError, ["exactly one", "--emotion"]),
+        (["--valence", 0], EmotionError, ["both --valence and --arousal"]),
+        ([], EmotionError, ["exactly one"]),
+        (["--valence", "nan", "--arousal", 0], EmotionError, ["valence"]),
+        (["--valence", 3, "--arousal", 1], EmotionError, ["old FCRBM 1..3 scale",
+                                                          "subtract 2: valence=1"]),
         (["--emotion", "bored"], EmotionError, ["bored"]),
         (["--emotion", "sad", "--root", "hips"], FCRBMInputError, ["--root", "feet", "model"]),
         (["--emotion", "sad", "--model", "missing.pt"], ConfigError, ["missing.pt",
-                                                                    "no such checkpoint"]),
+                                                                    "checkpoint not found"]),
     ],
 )
 def test_generate_command_errors_write_nothing(checkpoint, tmp_path, args, error, words):

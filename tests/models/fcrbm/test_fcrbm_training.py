@@ -13,7 +13,8 @@ import numpy as np
 import pytest
 import torch
 
-from emotive.models.fcrbm.model import FCRBM, FCRBMConfig, sliding_windows
+from emotive.models.fcrbm.config import FCRBMConfig
+from emotive.models.fcrbm.model import FCRBM, sliding_windows
 
 ORDER = 3
 VALENCE = 2.0

@@ -160,7 +160,7 @@ def test_labels_filter_clips_and_bad_input_raises(clips):
 
 
 def test_fold_into_root_moves_the_trajectory_into_the_hips(clips):
-    from emotive.models.gait.data import fold_into_root
+    from emotive.core.root import fold_into_root
 
     motion = clips["dataset-1_walk_normal_002"].motion
     assert np.abs(motion.positions[:, 0]).max() > 1.0  # joint_Root carries the trajectory

@@ -14,19 +14,13 @@ from gait_helpers import NUM_JOINTS, make_skeleton
 
 from emotive.core import Motion
 from emotive.data.emotion import Emotion, EmotionSchedule
-from emotive.errors import EmotionError, OutputError, PathError, RigError
+from emotive.errors import ConfigError, EmotionError, OutputError, PathError, RigError
 from emotive.io.bvh import read_bvh
 from emotive.models.gait import GaitConfig, GaitNetwork
 from emotive.models.gait.controls import GaitControls
-from emotive.models.gait.generate import (
-    STOP_DISTANCE,
-    GaitGenerator,
-    generate_walks,
-    to_model_schedule,
-)
+from emotive.models.gait.generate import STOP_DISTANCE, GaitGenerator, to_model_schedule
 from emotive.models.gait.model import GaitModel, load_gait_model
-from emotive.models.gait.outputs import write_walk
-from emotive.models.gait.training import ConfigError
+from emotive.models.gait.walks import generate_walks
 from emotive.paths import circle, figure8, line, waypoints
 
 LABELS = ("happy", "sad", "angry", "neutral")
@@ -231,11 +225,18 @@ def test_emotions_over_other_labels_map_onto_the_model(model):
 
 
 def test_files_are_written_at_30_fps_whatever_the_network_rate(tmp_path):
+    from emotive.data.emotion import coerce_emotion
+    from emotive.models.api import GenerationRequest
+    from emotive.models.gait.adapter import GaitWalkGenerator
+    from emotive.render.outputs import write_generated
+
     model = make_model(fps=15.0)
     walk = generate_walks(model, [figure8()], ["angry"], 2.0)[0]
     assert walk.motion.fps == 15.0
-    written = write_walk(walk, tmp_path / "w.bvh", npz=tmp_path / "w.npz",
-                         preview=tmp_path / "w.gif")
+    request = GenerationRequest("w", coerce_emotion("angry", LABELS), 2.0, figure8())
+    generated = GaitWalkGenerator(model).generate(request)
+    written = write_generated(generated, tmp_path / "w.bvh", npz=tmp_path / "w.npz",
+                              preview=tmp_path / "w.gif")
     assert [p.name for p in written] == ["w.bvh", "w.npz", "w.gif"]
     motion = read_bvh(tmp_path / "w.bvh")
     # 31 frames at 15 fps are resampled to 62 at 30 fps (emotive.core.ops.resample).
@@ -246,9 +247,9 @@ def test_files_are_written_at_30_fps_whatever_the_network_rate(tmp_path):
     assert list(data["labels"]) == list(LABELS)
     np.testing.assert_allclose(data["positions"], motion.positions_with_end_sites(), atol=1e-3)
     with pytest.raises(OutputError, match="ending in"):
-        write_walk(walk, tmp_path / "w.txt")
+        write_generated(generated, tmp_path / "w.txt")
     with pytest.raises(OutputError, match="does not exist"):
-        write_walk(walk, tmp_path / "missing" / "w.bvh")
+        write_generated(generated, tmp_path / "missing" / "w.bvh")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["w.bvh", "w.gif", "w.npz"]
 
 

@@ -14,8 +14,9 @@ from test_gait_generate import LABELS, make_model
 from emotive.core import Motion
 from emotive.core.ops import heading
 from emotive.eval.table1 import table1
-from emotive.models.gait.predict import GaitPredictor, QuaterNetPredictor, straight_ahead
-from emotive.models.quaternet import QuaterNetConfig, QuaterNetwork
+from emotive.models.gait.predict import GaitPredictor, straight_ahead
+from emotive.models.gait.quaternet import QuaterNetConfig, QuaterNetwork
+from emotive.models.gait.quaternet.predict import QuaterNetPredictor
 from emotive.transforms.np_rotations import quaternion_multiply, yaw_quaternion
 
 

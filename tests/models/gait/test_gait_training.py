@@ -13,14 +13,14 @@ import torch
 from typer.testing import CliRunner
 
 from emotive.data.emotion import ALL_LABELS
+from emotive.errors import ConfigError
 from emotive.models.gait import GaitConfig, GaitNetwork, GaitRig
 from emotive.models.gait.data import load_gait_data
+from emotive.models.gait.model import load_gait_checkpoint
 from emotive.models.gait.training import (
     CSV_COLUMNS,
-    ConfigError,
     GaitTrainSettings,
-    load_checkpoint,
-    load_settings,
+    load_gait_settings,
     rollout,
     teacher_forcing_mask,
     train_gait,
@@ -68,13 +68,13 @@ def test_training_lowers_the_loss_and_writes_checkpoints_and_log(data, tmp_path)
     assert all(float(r["val_total"]) > 0 and float(r["seconds"]) > 0 for r in rows)
     assert float(rows[1]["lr"]) == pytest.approx(3e-3 * 0.999)
     for name in ("last.pt", "best.pt"):
-        net, ckpt = load_checkpoint(tmp_path / name)
+        net, ckpt = load_gait_checkpoint(tmp_path / name)
         assert isinstance(net, GaitNetwork) and ckpt["config"] == CONFIG.to_dict()
         assert ckpt["train"]["epochs"] == 3 and set(ckpt) >= {"optimizer", "rng", "state"}
-    _, last = load_checkpoint(tmp_path / "last.pt")
+    _, last = load_gait_checkpoint(tmp_path / "last.pt")
     assert last["epoch"] == 3
     best_epoch = int(np.argmin([float(r["val_total"]) for r in rows])) + 1
-    assert load_checkpoint(tmp_path / "best.pt")[1]["epoch"] == best_epoch
+    assert load_gait_checkpoint(tmp_path / "best.pt")[1]["epoch"] == best_epoch
     # The training statistics travel in the weights.
     np.testing.assert_allclose(result.network.root_std.numpy(),
                                data["train"].statistics()["root"][1])
@@ -105,11 +105,11 @@ def test_ctrl_c_inside_an_epoch_leaves_a_loadable_last_checkpoint(data, tmp_path
 
     with pytest.raises(KeyboardInterrupt):
         run(data, tmp_path, on_batch=interrupt)
-    net, ckpt = load_checkpoint(tmp_path / "last.pt")
+    net, ckpt = load_gait_checkpoint(tmp_path / "last.pt")
     assert ckpt["epoch"] == 1 and len(ckpt["history"]) == 1
     assert len(read_csv(tmp_path / "log.csv")) == 1
     # The weights reached inside epoch 2 were saved, not those at the end of epoch 1.
-    after_one = load_checkpoint(tmp_path / "best.pt")[0]
+    after_one = load_gait_checkpoint(tmp_path / "best.pt")[0]
     assert any(not torch.equal(a, b) for a, b in zip(net.state_dict().values(),
                                                       after_one.state_dict().values(),
                                                       strict=True))
@@ -158,24 +158,24 @@ def test_bad_config_files_give_one_line_typed_errors(tmp_path, text, match):
     path = tmp_path / "gait.toml"
     path.write_text(text)
     with pytest.raises(ConfigError, match=match) as info:
-        load_settings(path)
+        load_gait_settings(path)
     assert str(path) in str(info.value) and "\n" not in str(info.value)
 
 
 def test_repository_config_and_missing_file(tmp_path):
-    config, settings = load_settings(REPO / "configs" / "gait.toml")
+    config, settings = load_gait_settings(REPO / "configs" / "gait.toml")
     assert config.labels == ALL_LABELS
     # The committed recipe: the paper's rates, a shorter schedule (see configs/gait.toml).
     assert settings == GaitTrainSettings(epochs=70, stride=30, lr_decay=0.98,
                                          teacher_forcing_decay=0.95)
     with pytest.raises(ConfigError, match="not found"):
-        load_settings(tmp_path / "missing.toml")
+        load_gait_settings(tmp_path / "missing.toml")
 
 
 def test_command_reports_config_errors_and_resume_without_checkpoint(tmp_path):
     import typer
 
-    from emotive.commands.train_gait import train_gait_command
+    from emotive.commands.train import train_gait_command
 
     app = typer.Typer()
     app.command()(train_gait_command)
@@ -212,13 +212,13 @@ def test_fine_tuning_starts_from_a_checkpoint_with_other_loss_weights(data, tmp_
 def test_the_committed_model_is_the_fine_tuning_of_the_committed_first_stage():
     from emotive.models.gait.model import default_checkpoint_path
 
-    config, settings = load_settings(REPO / "configs" / "gait-finetune.toml")
+    config, settings = load_gait_settings(REPO / "configs" / "gait-finetune.toml")
     assert config.amplitude_weight > 0 and settings.label_balance > 0
     stage1 = REPO / settings.init_from
-    _, first_ckpt = load_checkpoint(stage1)
-    base_config, base_settings = load_settings(REPO / "configs" / "gait.toml")
+    _, first_ckpt = load_gait_checkpoint(stage1)
+    base_config, base_settings = load_gait_settings(REPO / "configs" / "gait.toml")
     # Written before the fine-tuning fields existed: those keep their defaults.
     assert base_config.to_dict() == {**base_config.to_dict(), **first_ckpt["config"]}
     assert base_settings.to_dict() == {**base_settings.to_dict(), **first_ckpt["train"]}
-    _, ckpt = load_checkpoint(default_checkpoint_path())
+    _, ckpt = load_gait_checkpoint(default_checkpoint_path())
     assert ckpt["config"] == config.to_dict() and ckpt["train"] == settings.to_dict()

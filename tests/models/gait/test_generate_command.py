@@ -11,10 +11,10 @@ import pytest
 
 from emotive.core import Motion, Skeleton
 from emotive.core.roles import resolve_roles
-from emotive.eval import metrics
+from emotive.eval import feet
 from emotive.io.bvh import read_bvh, write_bvh
-from emotive.models.gait.generate import generate_walks
 from emotive.models.gait.model import default_checkpoint_path, load_gait_model
+from emotive.models.gait.walks import generate_walks
 from emotive.paths import circle
 from rigs import RIG
 
@@ -51,7 +51,7 @@ def test_pretrained_walks_follow_the_path_with_paces_ordered_as_in_the_data():
     # The foot-contact cleanup keeps planted feet still; the raw network lets them slide.
     raw = generate_walks(model, [circle()], ["happy"], 8.0, clean_feet=False)[0].motion
     roles = resolve_roles(raw.skeleton)
-    skate = [float(metrics.foot_skating(m.positions_with_end_sites(), roles, m.fps).mean_speed)
+    skate = [float(feet.foot_skating(m.positions_with_end_sites(), roles, m.fps).mean_speed)
              for m in (raw, walks[2].motion)]
     assert skate[1] < 0.5 * skate[0]
     # The data's walking paces: sad slowest, angry fastest.

@@ -8,9 +8,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from emotive.models.lgb import model as lgb_model
-from emotive.models.lgb.model import EmotionResampler
+from emotive.models.lgb.features import effector_columns, layout_columns
 from emotive.models.lgb.novelty import NoveltyReference, nearest_distance, windows
+from emotive.models.lgb.resampler import GUARD_HOP, GUARD_ROUNDS, PROCESSES, EmotionResampler
 
 
 @pytest.fixture(scope="module")
@@ -19,7 +19,7 @@ def model(sad_clips) -> EmotionResampler:
 
 
 def _points(model: EmotionResampler, features: np.ndarray) -> np.ndarray:
-    return features[:, lgb_model.effector_columns(model.layout)]
+    return features[:, effector_columns(model.layout)]
 
 
 def test_windows_are_frame_major_and_hop():
@@ -65,7 +65,7 @@ def test_guard_redraws_until_every_window_is_above_the_threshold(model):
     plain = replace(model, novelty=None)
     features, _, report = plain.sample_features(900, seed=3)
     assert report is None
-    _, dist = model.novelty.novelty(_points(model, features), lgb_model.GUARD_HOP)
+    _, dist = model.novelty.novelty(_points(model, features), GUARD_HOP)
     # A threshold that some windows of this draw do not clear.
     low = float(np.quantile(dist, 0.03))
     strict = replace(model, novelty=replace(model.novelty, threshold=low))
@@ -77,8 +77,8 @@ def test_guard_redraws_until_every_window_is_above_the_threshold(model):
     assert after.min() > strict.novelty.threshold * 0.9
     # The rows are still the drawn observations (chains jump where stretches were redrawn).
     for name, s in samples.items():
-        np.testing.assert_array_equal(s.states, model.observed[s.index][:, lgb_model._columns(
-            model.layout, lgb_model.PROCESSES[name][0])])
+        np.testing.assert_array_equal(s.states, model.observed[s.index][:, layout_columns(
+            model.layout, PROCESSES[name][0])])
     again, _, _ = strict.sample_features(900, seed=3)
     np.testing.assert_array_equal(guarded, again)
 
@@ -86,6 +86,6 @@ def test_guard_redraws_until_every_window_is_above_the_threshold(model):
 def test_guard_gives_up_and_reports_an_impossible_threshold(model):
     impossible = replace(model, novelty=replace(model.novelty, threshold=10.0))
     features, _, report = impossible.sample_features(300, seed=0)
-    assert report.rounds == lgb_model.GUARD_ROUNDS
+    assert report.rounds == GUARD_ROUNDS
     assert report.below == report.windows > 0
     assert np.isfinite(features).all() and features.shape == (300, model.observed.shape[1])

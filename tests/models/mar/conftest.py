@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 from mar_helpers import CONFIG, STYLES, examples
 
-from emotive.models.mar.database import build_database
+from emotive.models.mar.build import build_database
 
 
 @pytest.fixture(scope="session")

@@ -18,8 +18,9 @@ def walks(bandai1_dir):
 
 
 def test_a_real_angry_walk_becomes_a_slower_sad_walk_and_stays_a_walk(walks):
+    from emotive.models.mar.build import build_database
     from emotive.models.mar.config import MARConfig
-    from emotive.models.mar.database import Example, build_database
+    from emotive.models.mar.database import Example
     from emotive.models.mar.transfer import transfer_motion
 
     examples = [Example(c.motion, "bandai-namco-1", c.content, c.info.emotion, c.name)

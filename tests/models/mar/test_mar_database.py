@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 from mar_helpers import CONFIG, STYLES, cycle_frames, examples
 
+from emotive.models.mar.build import build_database
 from emotive.models.mar.config import MARConfig, TransferError
-from emotive.models.mar.database import MARDatabase, build_database
+from emotive.models.mar.database import MARDatabase
 
 
 def test_the_index_holds_registered_annotated_frames(mar_db):
@@ -68,7 +69,7 @@ def test_a_cycle_track_weighs_every_take_alike():
     """A fast and a slow take, three cycles each: the track's swing and duration are the
     plain means of the takes' (pooling their frames would weigh the slow take twice as
     much: a swing of 1.0 and 1.11 frames per canonical frame)."""
-    from emotive.models.mar.database import _cycle_track
+    from emotive.models.mar.build import _cycle_track
     from emotive.models.mar.registration import GaitCycle
 
     cycle = GaitCycle(30.0, 15.0)

@@ -3,7 +3,7 @@
 Legend: ``T`` frames, ``J`` joints, ``D`` kept dimensions, ``K`` all dimensions (``4 + 3 J``).
 
 A frame (:func:`frame_vectors`) is, after the transforms above the root role are folded into
-it (:func:`emotive.models.gait.data.fold_into_root`):
+it (:func:`emotive.core.root.fold_into_root`):
 
 * the root motion made relative: the ground step of the root role since the previous frame in
   the body frame of that previous frame (sideways, forward; metres), the change of heading
@@ -39,10 +39,25 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from scipy.ndimage import uniform_filter1d
 
 from emotive.core.motion import Motion
+from emotive.core.ops import heading
+from emotive.core.roles import resolve_roles
+from emotive.core.root import fold_into_root
 from emotive.core.skeleton import Skeleton, skeleton_from_dict, skeleton_to_dict
+from emotive.data.emotion import label_points, style_to_label
 from emotive.errors import DataError, RigError
+from emotive.features.contacts import foot_contacts, foot_strikes
+from emotive.transforms.np_rotations import (
+    axis_angle_to_quaternion,
+    quaternion_apply,
+    quaternion_conjugate,
+    quaternion_mean,
+    quaternion_multiply,
+    quaternion_to_axis_angle,
+    yaw_quaternion,
+)
 
 #: Dimensions whose training standard deviation is below this are constant and left out.
 CONSTANT_STD = 1e-6
@@ -52,6 +67,8 @@ CONSTANT_STD = 1e-6
 CONSTANT_ROTATION_STD = np.deg2rad(1.0)
 #: Columns of the root motion: sideways step, forward step, turn, height.
 ROOT_COLUMNS = 4
+#: Accepted valence/arousal values (the paper's scale is 1-3; beyond it exaggerates).
+CONTEXT_RANGE = (0.25, 5.0)
 
 
 def _wrap(angle: np.ndarray) -> np.ndarray:
@@ -59,9 +76,6 @@ def _wrap(angle: np.ndarray) -> np.ndarray:
 
 
 def _prepare(motion: Motion) -> tuple[Motion, int]:
-    from emotive.core.roles import resolve_roles
-    from emotive.models.gait.data import fold_into_root
-
     try:
         roles = resolve_roles(motion.skeleton)
     except Exception as exc:
@@ -78,14 +92,6 @@ def frame_vectors(motion: Motion) -> np.ndarray:
         RigError: the rig has no joint roles.
         DataError: fewer than two frames, or NaN in the motion.
     """
-    from emotive.core.ops import heading
-    from emotive.transforms.np_rotations import (
-        quaternion_apply,
-        quaternion_multiply,
-        quaternion_to_axis_angle,
-        yaw_quaternion,
-    )
-
     name = motion.metadata.get("name", "the motion")
     if motion.num_frames < 2:
         raise DataError(f"{name}: the FCRBM needs at least 2 frames, got {motion.num_frames}")
@@ -110,28 +116,24 @@ def frame_vectors(motion: Motion) -> np.ndarray:
 
 def _rotation_columns(frames: np.ndarray) -> np.ndarray:
     """``(T, J, 4)`` quaternions of the joint-rotation columns of ``(T, K)`` frames."""
-    from emotive.transforms.np_rotations import axis_angle_to_quaternion
-
     return axis_angle_to_quaternion(frames[:, ROOT_COLUMNS:].reshape(len(frames), -1, 3))
 
 
 def mean_rotations(frames: Sequence[np.ndarray]) -> np.ndarray:
-    """``(J, 4)`` average rotation of every joint over ``(T, K)`` frames (Markley's average:
-    the principal eigenvector of the sum of ``q qᵀ``, blind to the sign of ``q``)."""
-    from emotive.transforms.np_rotations import quaternion_mean
+    """``(J, 4)`` average rotation of every joint over ``(T, K)`` frames.
 
+    ``(J, 4)`` average rotation of every joint over ``(T, K)`` frames (Markley's average:
+    the principal eigenvector of the sum of ``q qᵀ``, blind to the sign of ``q``).
+    """
     return quaternion_mean(np.concatenate([_rotation_columns(f) for f in frames]), axis=0)
 
 
 def _rereference(frames: np.ndarray, reference: np.ndarray, inverse: bool) -> np.ndarray:
-    """Joint rotations of ``(T, K)`` frames made relative to ``reference`` (``q_ref⁻¹ q``), or
-    back (``q_ref q``) with ``inverse``."""
-    from emotive.transforms.np_rotations import (
-        quaternion_conjugate,
-        quaternion_multiply,
-        quaternion_to_axis_angle,
-    )
+    """Joint rotations made relative to ``reference``, or back with ``inverse``.
 
+    Joint rotations of ``(T, K)`` frames made relative to ``reference`` (``q_ref⁻¹ q``), or
+    back (``q_ref q``) with ``inverse``.
+    """
     ref = np.broadcast_to(reference, (len(frames), *reference.shape))
     q = _rotation_columns(frames)
     q = quaternion_multiply(ref if inverse else quaternion_conjugate(ref), q)
@@ -146,8 +148,6 @@ def clip_context(style: str, frames: int) -> np.ndarray:
     Raises:
         EmotionError: the style has no valence/arousal entry.
     """
-    from emotive.data.emotion import label_points, style_to_label
-
     point = label_points([style_to_label(style)])[0]
     return np.repeat((2.0 + point)[None], frames, axis=0)
 
@@ -168,11 +168,6 @@ def step_rate(visible: np.ndarray, codec: FrameCodec) -> np.ndarray:
     Returns:
         ``(T,)`` steps per second; zeros when the clip has fewer than two strikes.
     """
-    from scipy.ndimage import uniform_filter1d
-
-    from emotive.core.roles import resolve_roles
-    from emotive.features.contacts import foot_contacts, foot_strikes
-
     motion = codec.decode(visible)
     positions = motion.positions_with_end_sites()
     contacts = foot_contacts(positions, resolve_roles(motion.skeleton), motion.fps)
@@ -256,13 +251,6 @@ class FrameCodec:
 
     def decode(self, visible: np.ndarray, name: str = "fcrbm") -> Motion:
         """``(T, D)`` standardized frames -> motion starting at the origin facing +Z."""
-        from emotive.transforms.np_rotations import (
-            axis_angle_to_quaternion,
-            quaternion_apply,
-            quaternion_multiply,
-            yaw_quaternion,
-        )
-
         v = np.asarray(visible, dtype=np.float64)
         frames = np.repeat(self.constant[None], len(v), axis=0)
         frames[:, self.keep] = v * self.std + self.mean

@@ -30,6 +30,7 @@ import itertools
 import json
 import math
 from dataclasses import dataclass
+from importlib.resources import files
 from pathlib import Path
 from typing import Any
 
@@ -37,13 +38,14 @@ import numpy as np
 import torch
 
 from emotive.core.motion import Motion
-from emotive.errors import EmotiveError
+from emotive.core.ops import resample
+from emotive.data.emotion import ALL_LABELS, Emotion
+from emotive.errors import ConfigError, EmotiveError
 from emotive.ik.stance_root import root_from_stance
-from emotive.models.fcrbm.data import FrameCodec, frame_vectors
+from emotive.models.fcrbm.checkpoint import load_fcrbm_checkpoint
+from emotive.models.fcrbm.data import CONTEXT_RANGE, FrameCodec, frame_vectors
 from emotive.models.fcrbm.model import FCRBM
 
-#: Accepted valence/arousal values (the paper's scale is 1-3; beyond it exaggerates).
-CONTEXT_RANGE = (0.25, 5.0)
 #: Seconds generated at :data:`WARMUP_CONTEXT` and dropped when starting from the mean frame.
 WARMUP_SECONDS = 2.0
 #: Valence/arousal of the warm-up from the mean frame.
@@ -66,8 +68,6 @@ class FCRBMDivergedError(EmotiveError):
 
 def default_checkpoint_path() -> Path:
     """The committed FCRBM checkpoint."""
-    from importlib.resources import files
-
     return Path(str(files("emotive.assets") / "fcrbm" / "fcrbm.pt"))
 
 
@@ -90,8 +90,6 @@ def load_fcrbm_model(path: str | Path | None = None) -> FCRBMModel:
     Raises:
         ConfigError: missing, corrupt, or not an FCRBM checkpoint.
     """
-    from emotive.models.fcrbm.training import ConfigError, load_fcrbm_checkpoint
-
     if path is None and not default_checkpoint_path().is_file():
         raise ConfigError(f"the built-in FCRBM checkpoint {default_checkpoint_path()} is "
                           "missing: reinstall emotive, or train one with `emotive fcrbm train "
@@ -114,14 +112,14 @@ def check_context(values: np.ndarray, where: str) -> np.ndarray:
 
 
 def emotion_context(emotion: str) -> np.ndarray:
-    """``(2,)`` valence/arousal (1-3 scale) of an emotion such as ``"sad"`` or
+    """``(2,)`` valence/arousal (1-3 scale) of an emotion.
+
+    ``(2,)`` valence/arousal (1-3 scale) of an emotion such as ``"sad"`` or
     ``"happy=0.5,angry=0.5"``.
 
     Raises:
         EmotionError: unknown names or bad weights.
     """
-    from emotive.data.emotion import ALL_LABELS, Emotion
-
     return 2.0 + Emotion.parse(emotion, ALL_LABELS).valence_arousal()
 
 
@@ -136,8 +134,9 @@ def constant_context(valence: float, arousal: float, frames: int) -> np.ndarray:
 
 
 def schedule_context(path: str | Path, frames: int, fps: float) -> np.ndarray:
-    """``(frames, 2)`` context from a JSON schedule, interpolated linearly between keyframes
-    and held before the first and after the last.
+    """``(frames, 2)`` context from a JSON schedule.
+
+    Interpolated linearly between keyframes and held before the first and after the last.
 
     The file holds ``[{"t": 0, "valence": 3, "arousal": 1}, {"t": 10, "emotion": "sad"}]``
     (seconds; ``emotion`` as for :func:`emotion_context`).
@@ -195,16 +194,17 @@ def seed_frames(model: FCRBMModel, primer: Motion | None = None) -> np.ndarray:
         raise FCRBMInputError(f"{name}: the primer has {primer.num_frames} frames; the model "
                               f"needs at least {n + 1} initial frames")
     if abs(primer.fps - model.fps) > 1e-6:
-        from emotive.core.ops import resample
-
         primer = resample(primer, model.fps)
     return model.codec.encode(frame_vectors(primer))[-n:]
 
 
 def warmup_context(first: np.ndarray, fps: float) -> np.ndarray:
-    """``(W, B, 2)`` context of the warm-up before a ``(B, 2)`` first requested context:
+    """``(W, B, 2)`` context of the warm-up before a first requested context.
+
+    ``(W, B, 2)`` context of the warm-up before a ``(B, 2)`` first requested context:
     :data:`WARMUP_SECONDS` at :data:`WARMUP_CONTEXT`, then a linear change to ``first`` over
-    :data:`WARMUP_RAMP_SECONDS` (its last frame just before ``first``)."""
+    :data:`WARMUP_RAMP_SECONDS` (its last frame just before ``first``).
+    """
     hold, ramp = round(WARMUP_SECONDS * fps), round(WARMUP_RAMP_SECONDS * fps)
     neutral = np.broadcast_to(np.asarray(WARMUP_CONTEXT, dtype=np.float64), first.shape)
     weight = (np.arange(1, ramp + 1) / (ramp + 1))[:, None, None]

@@ -24,21 +24,38 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import torch
 
+from emotive.data.clips import load_clips
+from emotive.data.emotion import VALENCE_AROUSAL, style_to_label
+from emotive.data.splits import split_clips, spread
 from emotive.errors import DataError
-from emotive.models.epochs import EpochOutcome, TrainingLog, resumed_log, run_epochs
-from emotive.models.fcrbm.data import FrameCodec, clip_context, frame_vectors
-from emotive.models.fcrbm.generate import CONTEXT_RANGE
-from emotive.models.fcrbm.model import FCRBM, FCRBMConfig, sliding_windows
-from emotive.models.gait.training import (
-    ConfigError,
+from emotive.models.fcrbm.checkpoint import KIND, load_fcrbm_checkpoint
+from emotive.models.fcrbm.config import FCRBMConfig
+from emotive.models.fcrbm.data import (
+    CONTEXT_RANGE,
+    FrameCodec,
+    clip_context,
+    frame_vectors,
+    step_rate,
+)
+from emotive.models.fcrbm.model import FCRBM, sliding_windows
+from emotive.models.training import (
+    DictConfig,
+    EpochOutcome,
+    TrainingLog,
+    check_resumable,
     load_settings,
+    restore_rng_state,
+    resumed_log,
+    rng_state,
+    run_epochs,
+    seed_everything,
     training_paths,
 )
 
@@ -49,8 +66,6 @@ CSV_COLUMNS = ("epoch", "train_reconstruction", "val_one_step", "ar_radius", "se
 #: Valence/arousal values (per axis) at which the autoregressive part is kept stable: the
 #: paper's 1-3 scale and the exaggeration range around it, in steps of 0.75.
 STABLE_AXIS = (0.5, 1.25, 2.0, 2.75, 3.5)
-#: Marks a checkpoint as an FCRBM one.
-KIND = "fcrbm"
 #: Lowest valence/arousal of a training context after ``context_noise``: the lowest the
 #: generator accepts (kept positive: every interaction is multiplicative in the context).
 MIN_CONTEXT = CONTEXT_RANGE[0]
@@ -67,7 +82,7 @@ ENERGY_CLIP = 2.0
 
 
 @dataclass(frozen=True)
-class FCRBMTrainSettings:
+class FCRBMTrainSettings(DictConfig):
     """How the FCRBM is trained (``[train]`` of ``configs/fcrbm.toml``).
 
     Attributes:
@@ -99,7 +114,7 @@ class FCRBMTrainSettings:
             (:data:`EDGE_AROUSAL`) appear this many times in each epoch (after
             ``balance_contexts``); 1: as often as the others.
         max_ar_radius: with the past-to-visible term
-            (:attr:`~emotive.models.fcrbm.model.FCRBMConfig.visible_autoregression`), after
+            (:attr:`~emotive.models.fcrbm.config.FCRBMConfig.visible_autoregression`), after
             every epoch the autoregressive weights are scaled so that the
             spectral radius of their companion matrix is at most this at every context of
             the grid :data:`STABLE_AXIS` x :data:`STABLE_AXIS`
@@ -169,17 +184,15 @@ class FCRBMTrainSettings:
             raise ValueError(f"balance_contexts must be true or false, got "
                              f"{self.balance_contexts!r}")
 
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-safe dict of every field (tuples as lists)."""
-        return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
-
 
 def load_fcrbm_settings(path: str | Path) -> tuple[FCRBMConfig, FCRBMTrainSettings]:
-    """``[model]`` (:class:`FCRBMConfig` fields but ``visible``, which the data set) and
+    """``[model]`` and ``[train]`` of a TOML file.
+
+    ``[model]`` (:class:`FCRBMConfig` fields but ``visible``, which the data set) and
     ``[train]`` of a TOML file.
 
     Raises:
-        ConfigError: as :func:`emotive.models.gait.training.load_settings`.
+        ConfigError: as :func:`emotive.models.training.load_settings`.
     """
     return load_settings(path, FCRBMConfig, FCRBMTrainSettings, {"visible": 1})
 
@@ -207,17 +220,14 @@ class FCRBMData:
 
 
 def load_fcrbm_data(settings: FCRBMTrainSettings, progress: bool = False) -> FCRBMData:
-    """The clips of the settings' data sets and contents whose style has a valence/arousal
+    """The training clips, split per data set and encoded.
+
+    The clips of the settings' data sets and contents whose style has a valence/arousal
     entry, split by clip per data set and encoded with the training split's codec.
 
     Raises:
         DataError: a data set is missing or the training split has no clip.
     """
-    from emotive.data.clips import load_clips
-    from emotive.data.emotion import VALENCE_AROUSAL, style_to_label
-    from emotive.data.splits import split_clips
-    from emotive.models.gait.data import _spread
-
     raw: dict[str, list[tuple[str, np.ndarray, np.ndarray, Any]]] = {}
     for name in settings.datasets:
         clips = [c for c in load_clips(name, contents=settings.contents, progress=progress)
@@ -232,7 +242,7 @@ def load_fcrbm_data(settings: FCRBMTrainSettings, progress: bool = False) -> FCR
                                 f"{name}; it has {sorted(have)}")
             clips = [c for c in clips if c.style in wanted]
         for split, members in split_clips(clips, seed=settings.split_seed).items():
-            for clip in _spread(members, settings.max_clips):
+            for clip in spread(members, settings.max_clips):
                 frames = frame_vectors(clip.motion)
                 raw.setdefault(split, []).append(
                     (clip.name, frames, clip_context(clip.style, len(frames)), clip.motion))
@@ -265,8 +275,6 @@ def edge_energy_contexts(data: FCRBMData, offset: float) -> FCRBMData:
     Raises:
         DataError: a clip's style has no training clip.
     """
-    from emotive.models.fcrbm.data import step_rate
-
     def style(context: np.ndarray) -> tuple[float, ...]:
         return tuple(np.round(context[0], 4))
 
@@ -301,8 +309,10 @@ def edge_energy_contexts(data: FCRBMData, offset: float) -> FCRBMData:
 
 
 def epoch_examples(context: np.ndarray, balance: bool) -> np.ndarray:
-    """Indices of the examples of one epoch: each once, or with ``balance`` each repeated so
-    that every valence/arousal point of the data has about as many as the largest.
+    """Indices of the examples of one epoch.
+
+    Each once, or with ``balance`` each repeated so that every valence/arousal point of the data has
+    about as many as the largest.
 
     Args:
         context: ``(M, 2)`` context of every training example.
@@ -326,8 +336,11 @@ def stable_grid() -> torch.Tensor:
 
 
 def stable_corners() -> torch.Tensor:
-    """``(5, 2)`` the corners and the centre of :func:`stable_grid` (the cheap check between
-    epochs)."""
+    """``(5, 2)`` the corners and the centre of :func:`stable_grid`.
+
+    ``(5, 2)`` the corners and the centre of :func:`stable_grid` (the cheap check between
+    epochs).
+    """
     low, mid, high = STABLE_AXIS[0], STABLE_AXIS[len(STABLE_AXIS) // 2], STABLE_AXIS[-1]
     return torch.tensor([[low, low], [low, high], [high, low], [high, high], [mid, mid]])
 
@@ -347,58 +360,17 @@ def one_step_error(model: FCRBM, v: torch.Tensor, past: torch.Tensor, context: t
 
 @dataclass
 class FCRBMTrainResult:
-    """What :func:`train_fcrbm` leaves: the model after the last epoch, one dict per epoch
-    (:data:`CSV_COLUMNS`), the output folder and the best validation one-step error."""
+    """What :func:`train_fcrbm` leaves.
+
+    The model after the last epoch, one dict per epoch (:data:`CSV_COLUMNS`), the output folder and
+    the best validation one-step error.
+    """
 
     model: FCRBM
     codec: FrameCodec
     history: list[dict[str, float]]
     out_dir: Path
     best_val: float
-
-
-def load_fcrbm_checkpoint(path: str | Path) -> tuple[FCRBM, FrameCodec, dict[str, Any]]:
-    """The model, codec and raw dict of an FCRBM checkpoint.
-
-    Raises:
-        ConfigError: missing, corrupt, or not an FCRBM checkpoint.
-    """
-    path = Path(path)
-    if not path.is_file():
-        raise ConfigError(f"{path}: no such checkpoint")
-    try:
-        ckpt = torch.load(path, map_location="cpu", weights_only=True)
-        if not isinstance(ckpt, dict) or ckpt.get("kind") != KIND:
-            raise ValueError("not an FCRBM checkpoint")
-        model = FCRBM(FCRBMConfig.from_dict(ckpt["config"]))
-        model.load_state_dict(ckpt["state"])
-        codec = FrameCodec.from_dict(ckpt["codec"])
-    except Exception as exc:  # any failure to read is the same problem for the user
-        raise ConfigError(f"{path}: not a usable FCRBM checkpoint ({exc}); retrain it with "
-                          "`emotive fcrbm train`") from None
-    if codec.dim != model.config.visible:
-        raise ConfigError(f"{path}: the codec has {codec.dim} dimensions but the model "
-                          f"{model.config.visible}; the checkpoint is corrupt")
-    model.eval()
-    return model, codec, ckpt
-
-
-#: What a committed checkpoint keeps (no momentum or random state).
-EXPORTED_KEYS = ("kind", "config", "train", "codec", "state", "epoch", "best_val", "history",
-                 "seed")
-
-
-def export_fcrbm_checkpoint(source: str | Path, out: str | Path) -> Path:
-    """Write the generation part of an FCRBM training checkpoint (:data:`EXPORTED_KEYS`,
-    float32) to ``out``, atomically.
-
-    Raises:
-        ConfigError: as :func:`load_fcrbm_checkpoint`.
-    """
-    from emotive.models.gait.model import slim_checkpoint
-
-    load_fcrbm_checkpoint(source)
-    return slim_checkpoint(source, out, EXPORTED_KEYS)
 
 
 def train_fcrbm(
@@ -436,30 +408,26 @@ def train_fcrbm(
     if not len(v):
         raise DataError(f"no training clip is longer than the order {config.order}")
     val = data.examples("val", config.order)
-    torch.manual_seed(seed)
-    rng = np.random.default_rng(seed)
+    rng = seed_everything(seed)
     gen = torch.Generator().manual_seed(seed)
     model = FCRBM(config)
     log = TrainingLog()
     if resume:
         _, _, ckpt = load_fcrbm_checkpoint(last_path)
         # Settings added since a checkpoint was written take their defaults.
-        saved = FCRBMTrainSettings().to_dict() | ckpt["train"]
-        saved_config = FCRBMConfig.from_dict(ckpt["config"]).to_dict()
-        if saved_config != config.to_dict() or saved != settings.to_dict() | {
-                "epochs": saved["epochs"]}:
-            raise ConfigError(f"{last_path}: made with other settings; cannot resume")
+        saved = {"config": FCRBMConfig.from_dict(ckpt["config"]).to_dict(),
+                 "train": FCRBMTrainSettings().to_dict() | ckpt["train"]}
+        check_resumable(last_path, saved, config.to_dict(), settings.to_dict())
         model.load_state_dict(ckpt["state"])
         model._velocity = dict(ckpt["velocity"])
-        rng.bit_generator.state = ckpt["rng"]["numpy"]
-        gen.set_state(ckpt["rng"]["torch"])
+        restore_rng_state(rng, ckpt["rng"], gen)
         log = resumed_log(ckpt)
 
-    def checkpoint(epoch: int, rng_state: dict[str, Any]) -> dict[str, Any]:
+    def checkpoint(epoch: int, state: dict[str, Any]) -> dict[str, Any]:
         return {
             "kind": KIND, "config": config.to_dict(), "train": settings.to_dict(),
             "codec": data.codec.to_dict(), "state": model.state_dict(),
-            "velocity": dict(model._velocity), "epoch": epoch, "rng": rng_state,
+            "velocity": dict(model._velocity), "epoch": epoch, "rng": state,
             "best_val": log.best_val, "history": log.history, "seed": seed,
         }
 
@@ -503,7 +471,6 @@ def train_fcrbm(
         )
 
     run_epochs(log, settings.epochs, n_batches, out_dir, CSV_COLUMNS, run_epoch, checkpoint,
-               lambda: {"numpy": rng.bit_generator.state, "torch": gen.get_state()}, progress)
+               lambda: rng_state(rng, gen), progress)
     model.eval()
-    return FCRBMTrainResult(model, data.codec, log.history, out_dir,
-                            log.best_val if math.isfinite(log.best_val) else math.nan)
+    return FCRBMTrainResult(model, data.codec, log.history, out_dir, log.best_or_nan)

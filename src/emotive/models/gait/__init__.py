@@ -9,7 +9,8 @@
 * :mod:`~emotive.models.gait.controls`, :mod:`~emotive.models.gait.model`: what a checkpoint
   needs to animate without data, and :func:`load_gait_model` (the committed default).
 * :mod:`~emotive.models.gait.generate`: :class:`GaitGenerator`, many agents following paths in
-  one batch; :func:`generate_walks`. :mod:`~emotive.models.gait.outputs`: BVH, NPZ, previews.
+  one batch. :mod:`~emotive.models.gait.walks`: :func:`generate_walks`, whole walks with the
+  foot-contact cleanup.
 * :mod:`~emotive.models.gait.predict`: the Table 1 predictors of this network and QuaterNet.
 """
 
@@ -19,7 +20,7 @@ from emotive.models.gait.config import (
     ROOT_FEATURE_NAMES,
     GaitConfig,
 )
-from emotive.models.gait.generate import GaitFrame, GaitGenerator, generate_walks
+from emotive.models.gait.generate import GaitFrame, GaitGenerator
 from emotive.models.gait.losses import (
     LOSS_TERMS,
     GaitLoss,
@@ -34,6 +35,7 @@ from emotive.models.gait.losses import (
 )
 from emotive.models.gait.model import GaitModel, load_gait_model
 from emotive.models.gait.network import GaitInputs, GaitNetwork, GaitOutputs
+from emotive.models.gait.walks import generate_walks
 
 __all__ = [
     "AFFECTIVE_SIZE",

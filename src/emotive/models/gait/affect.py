@@ -40,8 +40,11 @@ def log_ratios(features: torch.Tensor) -> torch.Tensor:
 
 
 def gait_affective(positions: torch.Tensor, roles) -> torch.Tensor:
-    """``(..., 18)`` network affective features of ``(..., J + E, 3)`` positions (torch,
-    differentiable)."""
+    """``(..., 18)`` network affective features of ``(..., J + E, 3)`` positions.
+
+    ``(..., 18)`` network affective features of ``(..., J + E, 3)`` positions (torch,
+    differentiable).
+    """
     return log_ratios(affective_features(positions, roles))
 
 

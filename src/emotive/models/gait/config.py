@@ -18,7 +18,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from emotive.data.emotion import DEFAULT_LABELS, check_labels
-from emotive.models.config_io import DictConfig
+from emotive.models.training import DictConfig
 
 #: Per-frame inputs of the network besides rotations and emotion, in column order.
 AFFECTIVE_SIZE = 18

@@ -30,9 +30,11 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from scipy.ndimage import uniform_filter1d
 
 from emotive.core.skeleton import Skeleton, skeleton_from_dict, skeleton_to_dict
 from emotive.errors import DataError
+from emotive.transforms.np_rotations import quaternion_mean
 
 #: Root speed (metres per second) under which a frame counts as standing.
 STANDING_SPEED = 0.1
@@ -116,8 +118,6 @@ class GaitControls:
 
 def mean_rotations(q: np.ndarray) -> np.ndarray:
     """Per-joint mean of ``(N, J, 4)`` unit quaternions (sign-blind). Returns ``(J, 4)``."""
-    from emotive.transforms.np_rotations import quaternion_mean
-
     return quaternion_mean(q, axis=0)
 
 
@@ -161,10 +161,11 @@ def gait_controls(data: Any) -> GaitControls:
 
 
 def turn_slowing(data: Any, still: float) -> float:
-    """The slope of walking speed against path curvature (see the module docstring), clipped
-    to ``[0, 1]``; 0 without turning frames."""
-    from scipy.ndimage import uniform_filter1d
+    """The slope of walking speed against path curvature.
 
+    The slope of walking speed against path curvature (see the module docstring), clipped
+    to ``[0, 1]``; 0 without turning frames.
+    """
     offsets = data.clip_offsets
     curvature, ratio = [], []
     for k, info in enumerate(data.clips):

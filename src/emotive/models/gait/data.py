@@ -37,7 +37,8 @@ features are invariant to yaw and ground translation), so features are computed 
 only rotations and translations are moved, once, when the data is built. The transform is
 applied to the local frame of the *mover*, the root role joint (``Hips``), so the heading lands
 in the hips' rotation the network predicts; the transforms of its ancestors (the Bandai file
-root ``joint_Root``), where they move, are first folded into it (:func:`fold_into_root`).
+root ``joint_Root``), where they move, are first folded into it
+(:func:`~emotive.core.root.fold_into_root`).
 
 Targets are the inputs shifted by one frame: a window of ``T + 1`` frames gives inputs from
 frames ``0 .. T - 1`` and targets from frames ``1 .. T`` (:class:`GaitBatch`).
@@ -51,14 +52,29 @@ from typing import NamedTuple
 
 import numpy as np
 import torch
+from rich.console import Console
+from rich.progress import track
 
 from emotive.core.motion import Motion
+from emotive.core.ops import heading, resample
+from emotive.core.roles import resolve_roles
+from emotive.core.root import fold_into_root
 from emotive.core.skeleton import Skeleton
-from emotive.data.clips import Clip, ClipInfo
+from emotive.data.clips import Clip, ClipInfo, load_clips
 from emotive.data.emotion import Emotion, style_to_label
+from emotive.data.splits import SPLITS, split_clips, spread
+from emotive.data.windows import window_starts
 from emotive.errors import DataError
+from emotive.features.movement import movement_features
+from emotive.models.gait.affect import gait_affective_np
 from emotive.models.gait.config import GaitConfig
 from emotive.models.gait.network import GaitInputs
+from emotive.transforms.np_rotations import (
+    quaternion_apply,
+    quaternion_continuity,
+    quaternion_multiply,
+    yaw_quaternion,
+)
 
 #: The data sets the gait network trains on by default (locomotion only).
 DEFAULT_DATASETS: tuple[str, ...] = ("bandai-namco-1", "bandai-namco-2-locomotion")
@@ -164,9 +180,12 @@ class GaitData:
         return len(self.rotations)
 
     def statistics(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-        """``{"affective", "movement", "root"}: (mean, std)`` over every frame, float32, the
+        """Mean and std of the network's input features over every frame.
+
+        ``{"affective", "movement", "root"}: (mean, std)`` over every frame, float32, the
         std floored at :data:`MIN_STD`; the argument of
-        :meth:`~emotive.models.gait.network.GaitNetwork.set_feature_statistics`."""
+        :meth:`~emotive.models.gait.network.GaitNetwork.set_feature_statistics`.
+        """
         if not self.num_frames:
             raise DataError("no frames to compute feature statistics from")
         out = {}
@@ -201,45 +220,11 @@ class GaitData:
         )
 
 
-def fold_into_root(motion: Motion, root: int) -> Motion:
-    """The motion with the transforms of the root role's ancestors folded into the root role.
-
-    The root role's local transform becomes its world transform and its ancestors stay at the
-    identity, so that one joint (the *mover*) carries the whole world placement. Every joint
-    from the root role down keeps its world position. On the Bandai rig the file root
-    ``joint_Root`` sits at the origin in all but four short dataset-1 clips, where it carries
-    the trajectory instead of the hips.
-
-    Raises:
-        RigError: an ancestor of the root role has another child, which folding would move.
-    """
-    from emotive.errors import RigError
-    from emotive.transforms.kinematics import forward_kinematics_np
-
-    sk = motion.skeleton
-    chain, j = [], int(sk.parents[root])
-    while j >= 0:
-        chain.append(j)
-        j = int(sk.parents[j])
-    if not chain:
-        return motion
-    for a in chain:
-        children = [k for k in range(sk.num_joints) if sk.parents[k] == a]
-        if len(children) > 1 or a in sk.end_site_parents:
-            raise RigError(f"joint {sk.names[a]} above the root role {sk.names[root]} has other "
-                           "children; the gait network needs the root role's ancestors to carry "
-                           "nothing else")
-    grot, gpos = forward_kinematics_np(motion.rotations, motion.positions, list(sk.parents))
-    rotations, positions = motion.rotations.copy(), motion.positions.copy()
-    rotations[:, root], positions[:, root] = grot[:, root], gpos[:, root]
-    rotations[:, chain] = (1.0, 0.0, 0.0, 0.0)
-    positions[:, chain] = 0.0
-    return motion.replace(rotations=rotations, positions=positions)
-
-
 def clip_features(motion: Motion) -> dict[str, np.ndarray]:
-    """Per-frame quantities of one clip (see the module docstring), after
-    :func:`fold_into_root`.
+    """Per-frame quantities of one clip.
+
+    Per-frame quantities of one clip (see the module docstring), after
+    :func:`~emotive.core.root.fold_into_root`.
 
     Args:
         motion: the clip, ``T`` frames.
@@ -251,12 +236,6 @@ def clip_features(motion: Motion) -> dict[str, np.ndarray]:
     Raises:
         RigError: the rig lacks the roles of the features.
     """
-    from emotive.core.ops import heading
-    from emotive.core.roles import resolve_roles
-    from emotive.features.movement import movement_features
-    from emotive.models.gait.affect import gait_affective_np
-    from emotive.transforms.np_rotations import quaternion_continuity
-
     roles = resolve_roles(motion.skeleton)
     motion = fold_into_root(motion, int(roles.index["root"]))
     world = motion.positions_with_end_sites()
@@ -294,12 +273,6 @@ def canonical_frames(
     Returns:
         ``(F, J, 4)`` rotations and ``(F, J, 3)`` translations (new arrays).
     """
-    from emotive.transforms.np_rotations import (
-        quaternion_apply,
-        quaternion_multiply,
-        yaw_quaternion,
-    )
-
     yaw = yaw_quaternion(-np.asarray(heading, dtype=np.float64))
     rot, pos = rotations.copy(), positions.copy()
     shifted = positions[:, mover].copy()
@@ -338,13 +311,6 @@ def build_gait_data(
             different joint hierarchies.
         EmotionError: a clip's style is not among ``labels``.
     """
-    from rich.console import Console
-    from rich.progress import track
-
-    from emotive.core.ops import resample
-    from emotive.core.roles import resolve_roles
-    from emotive.data.windows import window_starts
-
     if length < 1 or stride < 1:
         raise DataError(f"window length and stride must be >= 1, got {length} and {stride}")
     if not clips:
@@ -399,14 +365,6 @@ def build_gait_data(
     )
 
 
-def _spread(items: list, count: int) -> list:
-    """At most ``count`` items evenly spread over the list (all when ``count`` is 0)."""
-    if not count or count >= len(items):
-        return items
-    keep = np.unique(np.linspace(0, len(items) - 1, count).round().astype(np.int64))
-    return [items[i] for i in keep]
-
-
 def load_gait_data(
     config: GaitConfig,
     datasets: Sequence[str] = DEFAULT_DATASETS,
@@ -439,15 +397,12 @@ def load_gait_data(
     Raises:
         DataError: a data set is missing, or the training split has no window.
     """
-    from emotive.data.clips import load_clips
-    from emotive.data.splits import SPLITS, split_clips
-
     pooled: dict[str, list[Clip]] = {s: [] for s in SPLITS}
     for name in datasets:
         clips = [c for c in load_clips(name, locomotion=True, progress=progress)
                  if style_to_label(c.style) in config.labels]
         for split, members in split_clips(clips, seed=split_seed).items():
-            pooled[split].extend(_spread(members, max_clips))
+            pooled[split].extend(spread(members, max_clips))
     if not pooled["train"]:
         raise DataError(
             f"no locomotion clips of {list(datasets)} have a style among {list(config.labels)}"

@@ -40,9 +40,9 @@ so no data set is needed; or from a primer clip on the model's rig, whose frames
 through the network first. Predicted values are clamped to plausible ranges and a non-finite
 prediction keeps the previous pose, so the output never holds NaN.
 
-Files. :func:`generate_walks` (behind ``emotive generate``) also cleans up foot contacts after
-the fact (:func:`clean_foot_contacts`): planted feet are pinned and the legs re-solved by
-inverse kinematics. The streaming generator returns the network's raw frames.
+Files. :func:`~emotive.models.gait.walks.generate_walks` (behind ``emotive generate``) also
+cleans up foot contacts after the fact; the streaming generator returns the network's raw
+frames.
 
 Randomness. The network is deterministic; the seed draws each agent's starting stepping phase,
 which sets which foot leads and the timing of steps.
@@ -59,14 +59,19 @@ import numpy as np
 import torch
 
 from emotive.core.motion import Motion
-from emotive.data.emotion import Emotion, EmotionSchedule
-from emotive.errors import EmotionError, PathError, RigError
+from emotive.core.ops import resample
+from emotive.core.roles import resolve_roles
+from emotive.data.emotion import Emotion, EmotionSchedule, coerce_emotion
+from emotive.errors import PathError, RigError
 from emotive.features.movement import LOWPASS_HZ
+from emotive.models.gait.affect import gait_affective
 from emotive.models.gait.controls import MIN_TURN_FACTOR
+from emotive.models.gait.data import canonical_frames, clip_features
 from emotive.models.gait.model import GaitModel
 from emotive.models.gait.network import GaitInputs, same_hemisphere
 from emotive.paths import GroundPath
 from emotive.transforms.kinematics import PoseFK
+from emotive.transforms.rotations import quaternion_multiply, yaw_quaternion
 
 #: Frames of the standing start fed to the network before the first step.
 WARMUP_FRAMES = 10
@@ -118,39 +123,16 @@ class _Agent:
 def to_model_schedule(emotion: EmotionLike, labels: Sequence[str]) -> EmotionSchedule:
     """An emotion or schedule over the model's ``labels``.
 
-    Accepts an :class:`Emotion`, an :class:`EmotionSchedule`, text such as
-    ``"happy=0.7,neutral=0.3"``, a mapping ``{"happy": 0.7}`` or ``(C,)`` weights over
-    ``labels``. Labels of the input that the model lacks must weigh zero.
+    Accepts what :func:`~emotive.data.emotion.coerce_emotion` accepts: an :class:`Emotion`,
+    an :class:`EmotionSchedule`, text such as ``"happy=0.7,neutral=0.3"`` or
+    ``"valence=0.5,arousal=0.2"``, a mapping, ``(C,)`` weights over ``labels``, keyframes or a
+    JSON file of them. Labels of the input that the model lacks must weigh zero.
 
     Raises:
         EmotionError: unknown names, negative, NaN or all-zero weights, or weight on a label
             the model was not trained with.
     """
-    labels = tuple(labels)
-    if isinstance(emotion, str):
-        return EmotionSchedule.constant(Emotion.parse(emotion, labels))
-    if isinstance(emotion, Mapping):
-        return EmotionSchedule.constant(Emotion.from_dict(emotion, labels))
-    if isinstance(emotion, np.ndarray):
-        return EmotionSchedule.constant(Emotion(emotion, labels))
-    if isinstance(emotion, Emotion):
-        emotion = EmotionSchedule.constant(emotion)
-    if not isinstance(emotion, EmotionSchedule):
-        raise EmotionError(
-            f"an emotion must be text like 'happy=0.7,neutral=0.3', a mapping, weights or a "
-            f"schedule, got {type(emotion).__name__}"
-        )
-    if emotion.labels == labels:
-        return emotion
-    weights = np.zeros((len(emotion.times), len(labels)))
-    for k, name in enumerate(emotion.labels):
-        if name in labels:
-            weights[:, labels.index(name)] = emotion.weights[:, k]
-        elif np.any(emotion.weights[:, k] > 0):
-            raise EmotionError(
-                f"the model has no emotion {name!r}; it knows {', '.join(labels)}"
-            )
-    return EmotionSchedule(emotion.times, weights, labels)
+    return coerce_emotion(emotion, labels)
 
 
 class GaitGenerator:
@@ -172,8 +154,6 @@ class GaitGenerator:
 
     def __init__(self, model: GaitModel, seed: int = 0, dtype: torch.dtype = torch.float32
                  ) -> None:
-        from emotive.core.roles import resolve_roles
-
         self.model = model
         self.seed = int(seed)
         self.dtype = dtype
@@ -311,8 +291,10 @@ class GaitGenerator:
         self._emotion[k] = schedule.at(0.0)
 
     def set_path(self, agent: int, path: GroundPath) -> None:
-        """Send an agent along another path from its nearest point; the agent does not jump:
-        the gap to the new path closes as it walks (:data:`PATH_MERGE_SLOPE`).
+        """Send an agent along another path from its nearest point.
+
+        The agent does not jump: the gap to the new path closes as it walks
+        (:data:`PATH_MERGE_SLOPE`).
 
         Raises:
             KeyError: unknown agent. PathError: not a path.
@@ -338,8 +320,6 @@ class GaitGenerator:
 
     def _affective_of(self, rot: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """World positions ``(..., J + E, 3)`` of canonical poses and their affective features."""
-        from emotive.models.gait.affect import gait_affective
-
         pos = self._fk(rot.reshape(-1, *rot.shape[-2:])).reshape(*rot.shape[:-2], -1, 3)
         return pos, gait_affective(pos, self._roles)
 
@@ -393,8 +373,11 @@ class GaitGenerator:
         return factor
 
     def _by_path(self) -> list[tuple[GroundPath, np.ndarray]]:
-        """The agents grouped by the path they follow, ``(path, batch indices)``; kept until an
-        agent is added or removed or changes path, so a step queries each path in one call."""
+        """The agents grouped by the path they follow, ``(path, batch indices)``.
+
+        Kept until an agent is added or removed or changes path, so a step queries each path in one
+        call.
+        """
         if self._groups is None:
             groups: dict[int, tuple[GroundPath, list[int]]] = {}
             for k, agent in enumerate(self._order):
@@ -406,7 +389,6 @@ class GaitGenerator:
     @torch.no_grad()
     def step(self) -> GaitFrame:
         """Advance every agent by one frame (``1 / fps`` seconds) and return the new frame."""
-
         n = len(self._order)
         dt = 1.0 / self.fps
         m = torch.as_tensor(self._emotion, dtype=torch.float64)
@@ -465,8 +447,11 @@ class GaitGenerator:
 
     @torch.no_grad()
     def first_frame(self) -> GaitFrame:
-        """The agents' current frame before any step (the standing pose or the primer's last
-        frame placed on the path), so that a clip can start where the agents stand."""
+        """The agents' current frame before any step.
+
+        The agents' current frame before any step (the standing pose or the primer's last
+        frame placed on the path), so that a clip can start where the agents stand.
+        """
         xz = np.zeros((len(self._order), 2))
         for path, members in self._by_path():
             xz[members] = path.position(self._arc[members])
@@ -483,8 +468,6 @@ class GaitGenerator:
             h: ``(B,)`` root height features.
             xz: ``(B, 2)`` ground positions.
         """
-        from emotive.transforms.rotations import quaternion_multiply, yaw_quaternion
-
         mv = self.model.controls.mover
         rotations = rot.clone()
         rotations[:, mv] = quaternion_multiply(
@@ -515,9 +498,6 @@ def primer_features(primer: Motion, controls: Any) -> dict[str, np.ndarray]:
     Raises:
         RigError: not a motion, another rig, or fewer than two frames.
     """
-    from emotive.core.ops import resample
-    from emotive.models.gait.data import canonical_frames, clip_features
-
     sk = controls.skeleton
     if not isinstance(primer, Motion):
         raise RigError(f"a primer must be a Motion, got {type(primer).__name__}")
@@ -543,113 +523,12 @@ def primer_features(primer: Motion, controls: Any) -> dict[str, np.ndarray]:
 
 def _place(canonical: np.ndarray, heading: np.ndarray, xz: np.ndarray, lift: np.ndarray
            ) -> np.ndarray:
-    """``(B, P, 3)`` canonical points turned by ``heading`` about Y, moved to ``xz`` and
-    raised by ``lift``."""
+    """``(B, P, 3)`` canonical points turned, moved and raised.
+
+    ``(B, P, 3)`` canonical points turned by ``heading`` about Y, moved to ``xz`` and
+    raised by ``lift``.
+    """
     c, s = np.cos(heading)[:, None], np.sin(heading)[:, None]
     x, y, z = canonical[..., 0], canonical[..., 1], canonical[..., 2]
     return np.stack((c * x + s * z + xz[:, :1], y + lift[:, None], -s * x + c * z + xz[:, 1:]),
                     -1)
-
-
-@dataclass(frozen=True, eq=False)
-class GeneratedWalk:
-    """A walk made by :func:`generate_walks`.
-
-    Attributes:
-        motion: the motion on the model's rig at the model's frame rate (frame 0 is the start
-            pose), world placement in the mover joint.
-        emotion: ``(T, C)`` emotion of every frame.
-        labels: the ``C`` labels.
-        path: the path it followed.
-    """
-
-    motion: Motion
-    emotion: np.ndarray
-    labels: tuple[str, ...]
-    path: GroundPath
-
-
-def generate_walks(
-    model: GaitModel,
-    paths: Sequence[GroundPath],
-    emotions: Sequence[EmotionLike],
-    seconds: float,
-    seed: int = 0,
-    primer: Motion | None = None,
-    progress: bool = False,
-    clean_feet: bool = True,
-) -> list[GeneratedWalk]:
-    """Walks of ``seconds`` for each (path, emotion) pair, all stepped in one batch.
-
-    With ``clean_feet`` (the default), each finished walk gets the foot-contact cleanup of
-    :func:`clean_foot_contacts`; ``False`` keeps the network's raw output.
-
-    Raises:
-        EmotionError, PathError, RigError: as :meth:`GaitGenerator.add_agent`.
-        ValueError: ``seconds`` not a positive finite number, or lists of different lengths.
-    """
-    from rich.console import Console
-    from rich.progress import track
-
-    if not (isinstance(seconds, int | float) and math.isfinite(seconds) and seconds > 0):
-        raise ValueError(f"seconds must be a positive number, got {seconds!r}")
-    if len(paths) != len(emotions):
-        raise ValueError(f"{len(paths)} paths for {len(emotions)} emotions: give one each")
-    gen = GaitGenerator(model, seed=seed)
-    for path, emotion in zip(paths, emotions, strict=True):
-        gen.add_agent(path, emotion, primer=primer)
-    frames = [gen.first_frame()]
-    steps = max(1, round(seconds * model.fps))
-    for _ in track(range(steps), description="generating", disable=not progress,
-                   console=Console(stderr=True), transient=True):
-        frames.append(gen.step())
-    rotations = np.stack([f.rotations for f in frames], 1)
-    positions = np.stack([f.positions for f in frames], 1)
-    emotion = np.stack([f.emotion for f in frames], 1)
-    out = []
-    for k, path in enumerate(paths):
-        motion = Motion(model.controls.skeleton, rotations[k], positions[k], model.fps,
-                        {"name": f"walk-{k}", "source": str(model.source), "seed": seed})
-        if clean_feet:
-            motion = clean_foot_contacts(motion)
-        out.append(GeneratedWalk(motion, emotion[k], model.labels, path))
-    return out
-
-
-def clean_foot_contacts(motion: Motion) -> Motion:
-    """Hold planted feet still: the network moves the body along the path by its predicted
-    speed, and where the legs' stride does not match that speed exactly a planted foot
-    slides. Feet touching the ground (:func:`emotive.features.contacts.foot_contacts` on the
-    walk itself) are pinned where they landed and the leg chains re-solved by inverse
-    kinematics (:func:`emotive.ik.api.pin_feet`); the hips and the upper body are unchanged.
-    """
-    from emotive.core.roles import resolve_roles
-    from emotive.features.contacts import foot_contacts
-    from emotive.ik.api import pin_feet
-
-    if motion.num_frames < 3:
-        return motion
-    contacts = foot_contacts(motion.positions_with_end_sites(), resolve_roles(motion.skeleton),
-                             motion.fps)
-    return pin_feet(motion, contacts).motion.replace(metadata=motion.metadata)
-
-
-@dataclass
-class NetworkGenerator:
-    """The evaluation suite's :class:`~emotive.eval.sources.Generator` for a gait model.
-
-    Attributes:
-        model: the model.
-        name: its name in reports.
-        clean_feet: apply the foot-contact cleanup (:func:`clean_foot_contacts`).
-    """
-
-    model: GaitModel
-    name: str = "emotive-gait"
-    clean_feet: bool = True
-
-    def generate(self, request: Any) -> Motion:
-        """One :class:`~emotive.eval.sources.GenerationRequest` as a motion."""
-        walk = generate_walks(self.model, [request.path], [request.schedule], request.seconds,
-                              seed=request.seed, clean_feet=self.clean_feet)[0]
-        return walk.motion

@@ -117,8 +117,9 @@ def _check_rotations(pred: torch.Tensor, true: torch.Tensor, num_joints: int) ->
 def rig_positions(
     rotations: torch.Tensor, local_positions: torch.Tensor, rig: GaitRig
 ) -> torch.Tensor:
-    """World positions of joints then end sites, as
-    :meth:`emotive.core.Motion.positions_with_end_sites` places them.
+    """World positions of joints then end sites.
+
+    As :meth:`emotive.core.Motion.positions_with_end_sites` places them.
 
     Args:
         rotations: ``(B..., J, 4)`` local unit quaternions.
@@ -207,7 +208,9 @@ def _foot_term(pred_pos: torch.Tensor, true_pos: torch.Tensor, rig: GaitRig) -> 
 
 def amplitude_loss(pred_pos: torch.Tensor, true_pos: torch.Tensor, pred_height: torch.Tensor,
                    true_height: torch.Tensor, rig: GaitRig) -> torch.Tensor:
-    """The amplitude term: how far the prediction's movement range within a window is from
+    """The amplitude term of the loss.
+
+    The amplitude term: how far the prediction's movement range within a window is from
     the truth's.
 
     Args:
@@ -343,7 +346,9 @@ def foot_contact_loss(
 
 
 class GaitLoss:
-    """Equation (13): the weighted sum of the five terms (and the amplitude extension when its
+    """Equation (13): the weighted sum of the loss terms.
+
+    Equation (13): the weighted sum of the five terms (and the amplitude extension when its
     weight is positive), with the config's weights and switches.
 
     With ``use_affective=False`` the affective term is not computed; with

@@ -1,7 +1,9 @@
 """A trained gait model ready to animate: network, controls, and the committed default.
 
-:func:`load_gait_model` reads a checkpoint of :func:`~emotive.models.gait.training.train_gait`
-(or the exported default under ``emotive/assets/gait/``); :func:`export_checkpoint` strips a
+:func:`load_gait_checkpoint` reads the network of a checkpoint of
+:func:`~emotive.models.gait.training.train_gait`; :func:`load_gait_model` adds the animation
+controls (by default of the exported default under ``emotive/assets/gait/``);
+:func:`export_checkpoint` strips a
 training checkpoint down to what animation needs (config, weights, controls, the training
 settings and log for the model card), so the committed file stays small.
 """
@@ -13,10 +15,11 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-import torch
-
+from emotive.errors import ConfigError
+from emotive.models.gait.config import GaitConfig
 from emotive.models.gait.controls import GaitControls
 from emotive.models.gait.network import GaitNetwork
+from emotive.models.training import read_checkpoint, slim_checkpoint
 
 #: The committed default checkpoint, inside the package.
 DEFAULT_CHECKPOINT = "emotive-gait.pt"
@@ -56,6 +59,27 @@ def default_checkpoint_path() -> Path:
     return Path(str(resources.files("emotive") / "assets" / "gait" / DEFAULT_CHECKPOINT))
 
 
+def load_gait_checkpoint(path: str | Path) -> tuple[GaitNetwork, dict[str, Any]]:
+    """The network (in eval mode) of a gait checkpoint, and the checkpoint.
+
+    The network (in eval mode) of a checkpoint written by
+    :func:`~emotive.models.gait.training.train_gait`, and the checkpoint.
+
+    Raises:
+        ConfigError: the file is missing, a folder, or not a gait checkpoint.
+    """
+
+    def build(ckpt: dict[str, Any]) -> GaitNetwork:
+        network = GaitNetwork(GaitConfig.from_dict(ckpt["config"]))
+        network.load_state_dict(ckpt["state"])
+        return network
+
+    network, ckpt = read_checkpoint(path, "a gait checkpoint", build,
+                                    "give a last.pt or best.pt written by `emotive train gait`")
+    network.eval()
+    return network, ckpt
+
+
 def load_gait_model(path: str | Path | None = None) -> GaitModel:
     """A gait model from a checkpoint, by default the committed one.
 
@@ -63,10 +87,8 @@ def load_gait_model(path: str | Path | None = None) -> GaitModel:
         ConfigError: the file is missing, corrupt, or not a gait checkpoint with controls
             (checkpoints written before the controls existed must be retrained).
     """
-    from emotive.models.gait.training import ConfigError, load_checkpoint
-
     path = default_checkpoint_path() if path is None else Path(path)
-    network, ckpt = load_checkpoint(path)
+    network, ckpt = load_gait_checkpoint(path)
     if "controls" not in ckpt:
         raise ConfigError(f"{path}: gait checkpoint without animation controls; retrain it with "
                           "`emotive train gait`")
@@ -81,8 +103,7 @@ def load_gait_model(path: str | Path | None = None) -> GaitModel:
 
 
 def export_checkpoint(source: str | Path, out: str | Path) -> Path:
-    """Write the animation part of a gait training checkpoint (:data:`EXPORTED_KEYS`),
-    float32.
+    """Write the animation part of a gait training checkpoint (:data:`EXPORTED_KEYS`), float32.
 
     Raises:
         ConfigError: as :func:`load_gait_model`.
@@ -90,17 +111,3 @@ def export_checkpoint(source: str | Path, out: str | Path) -> Path:
     load_gait_model(source)
     return slim_checkpoint(source, out, EXPORTED_KEYS)
 
-
-def slim_checkpoint(source: str | Path, out: str | Path, keys: tuple[str, ...]) -> Path:
-    """Copy the ``keys`` of a checkpoint (weights as float32) to ``out``, atomically; for
-    committing checkpoints without optimizer state. The caller validates ``source``."""
-    from emotive.io.atomic import atomic_output
-
-    ckpt = torch.load(source, map_location="cpu", weights_only=True)
-    slim: dict[str, Any] = {k: ckpt[k] for k in keys if k in ckpt}
-    slim["state"] = {k: v.float() if v.is_floating_point() else v
-                     for k, v in slim["state"].items()}
-    out = Path(out)
-    with atomic_output(out) as tmp:
-        torch.save(slim, tmp)
-    return out

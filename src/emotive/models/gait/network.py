@@ -174,8 +174,10 @@ class GaitNetwork(nn.Module):
     def initial_state(
         self, batch: int, dtype: torch.dtype | None = None, device: torch.device | None = None
     ) -> torch.Tensor:
-        """The GRU state before any frame: ``(L, B, H_3)`` zeros (the parameters' dtype and
-        device unless given)."""
+        """The GRU state before any frame.
+
+        ``(L, B, H_3)`` zeros (the parameters' dtype and device unless given).
+        """
         ref = next(self.parameters())
         return torch.zeros(
             self.config.gru_layers, batch, self.config.gru_hidden,

@@ -1,5 +1,8 @@
-"""Table 1 predictors (:class:`emotive.eval.table1.Predictor`) of the gait network and of the
-QuaterNet baseline.
+"""The Table 1 predictor of the gait network, and helpers shared with QuaterNet's.
+
+The Table 1 predictor (:class:`emotive.eval.table1.Predictor`) of the gait network, and the
+helpers it shares with the QuaterNet baseline's
+(:class:`~emotive.models.gait.quaternet.predict.QuaterNetPredictor`).
 
 Both see the primer through the same per-frame inputs as in training
 (:func:`~emotive.models.gait.generate.primer_features`), run it through the network
@@ -22,14 +25,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
-import torch
 
 from emotive.core.motion import Motion
+from emotive.core.ops import heading, resample
+from emotive.core.roles import resolve_roles
+from emotive.data.emotion import Emotion
 from emotive.models.gait.controls import GaitControls
-from emotive.models.gait.generate import GaitGenerator, primer_features
+from emotive.models.gait.generate import GaitGenerator
 from emotive.models.gait.model import GaitModel
 from emotive.paths import GroundPath
 
@@ -39,9 +43,6 @@ AHEAD_METRES = 200.0
 
 def straight_ahead(primer: Motion, controls: GaitControls) -> GroundPath:
     """A straight path from the primer's last ground position along its last heading."""
-    from emotive.core.ops import heading
-    from emotive.core.roles import resolve_roles
-
     root = resolve_roles(primer.skeleton).index["root"]
     start = primer.positions_with_end_sites()[-1, root][[0, 2]]
     yaw = float(heading(primer)[-1])
@@ -50,16 +51,17 @@ def straight_ahead(primer: Motion, controls: GaitControls) -> GroundPath:
     return GroundPath.from_polyline(points, name="straight ahead")
 
 
-def _frames_at(count: int, src_fps: float, dst_fps: float) -> int:
-    """Frames at ``src_fps`` that cover ``count`` frames at ``dst_fps``, plus one."""
+def frames_at(count: int, src_fps: float, dst_fps: float) -> int:
+    """Frames at ``src_fps`` (Hz) that cover ``count`` frames at ``dst_fps`` (Hz), plus one."""
     return math.ceil(count * src_fps / dst_fps) + 1
 
 
-def _back_to(motion: Motion, fps: float, frames: int) -> Motion:
-    """``motion`` (starting one frame before the prediction) at ``fps``, the first
-    ``frames`` frames after its frame 0."""
-    from emotive.core.ops import resample
+def back_to_rate(motion: Motion, fps: float, frames: int) -> Motion:
+    """``motion`` at ``fps`` (Hz), the first ``frames`` frames after its frame 0.
 
+    ``motion`` (starting one frame before the prediction) at ``fps`` (Hz), the first
+    ``frames`` frames after its frame 0.
+    """
     if abs(motion.fps - fps) > 1e-9 * fps:
         motion = resample(motion, fps)
     return motion.replace(rotations=motion.rotations[1:frames + 1],
@@ -75,80 +77,18 @@ class GaitPredictor:
 
     def predict(self, primer: Motion, frames: int, emotion: np.ndarray,
                 labels: tuple[str, ...]) -> Motion:
-        """The ``frames`` frames after ``primer`` (see
-        :meth:`emotive.eval.table1.Predictor.predict`)."""
-        from emotive.data.emotion import Emotion
+        """The ``frames`` frames after ``primer``.
 
+        The ``frames`` frames after ``primer`` (see
+        :meth:`emotive.eval.table1.Predictor.predict`).
+        """
         gen = GaitGenerator(self.model)
         gen.add_agent(straight_ahead(primer, self.model.controls), Emotion(emotion, labels),
                       primer=primer)
         first = gen.first_frame()
-        steps = _frames_at(frames, self.model.fps, primer.fps)
+        steps = frames_at(frames, self.model.fps, primer.fps)
         out = [first] + [gen.step() for _ in range(steps)]
         motion = Motion(self.model.controls.skeleton, np.stack([f.rotations[0] for f in out]),
                         np.stack([f.positions[0] for f in out]), self.model.fps,
                         {**primer.metadata, "predictor": self.name})
-        return _back_to(motion, primer.fps, frames)
-
-
-@dataclass
-class QuaterNetPredictor:
-    """The QuaterNet baseline as a Table 1 predictor (see the module docstring).
-
-    Attributes:
-        network: the trained :class:`~emotive.models.quaternet.QuaterNetwork`.
-        controls: the rig and standing pose of its checkpoint.
-        name: the name in the table.
-    """
-
-    network: Any
-    controls: GaitControls
-    name: str = "QuaterNet"
-
-    @torch.no_grad()
-    def predict(self, primer: Motion, frames: int, emotion: np.ndarray,
-                labels: tuple[str, ...]) -> Motion:
-        """The ``frames`` frames after ``primer``; ``emotion`` is not used."""
-        from emotive.core.ops import heading, resample
-        from emotive.transforms.np_rotations import quaternion_multiply, yaw_quaternion
-
-        c = self.controls
-        f = primer_features(primer, c)
-        net = self.network.eval()
-        dtype = next(net.parameters()).dtype
-
-        def t(x: np.ndarray) -> torch.Tensor:
-            return torch.as_tensor(x, dtype=dtype)
-
-        _, state = net(t(f["rotations"][None, :-1]), t(f["movement"][None, :-1]))
-        rot = t(f["rotations"][-1:])
-        move = f["movement"][-1].copy()
-        theta = math.atan2(move[0], move[1])
-        omega, speed = float(move[2]), float(move[3])
-        steps = _frames_at(frames, c.fps, primer.fps)
-        rotations = [f["rotations"][-1]]
-        for _ in range(steps):
-            movement = np.array([math.sin(theta), math.cos(theta), omega, speed, 0.0])
-            out, state = net.step(rot, t(movement[None]), state)
-            rot = out.rotations
-            rotations.append(rot[0].double().numpy())
-            theta += omega
-        q = np.stack(rotations)
-        # Joints above the mover stay at the identity, as in the data.
-        j = int(c.skeleton.parents[c.mover])
-        while j >= 0:
-            q[:, j] = (1.0, 0.0, 0.0, 0.0)
-            j = int(c.skeleton.parents[j])
-        # World placement: the primer's last heading and height, moving at its speed.
-        mover = c.mover
-        motion = primer if abs(primer.fps - c.fps) < 1e-9 * c.fps else resample(primer, c.fps)
-        yaw = float(heading(motion)[-1])
-        last = motion.positions[-1, mover]
-        q[:, mover] = quaternion_multiply(yaw_quaternion(np.full(len(q), yaw)), q[:, mover])
-        positions = np.repeat(motion.positions[-1:], len(q), axis=0)
-        travel = speed * np.arange(len(q))[:, None] * np.array([math.sin(yaw), math.cos(yaw)])
-        positions[:, mover, 0] = last[0] + travel[:, 0]
-        positions[:, mover, 2] = last[2] + travel[:, 1]
-        out_motion = Motion(c.skeleton, q, positions, c.fps,
-                            {**primer.metadata, "predictor": self.name})
-        return _back_to(out_motion, primer.fps, frames)
+        return back_to_rate(motion, primer.fps, frames)

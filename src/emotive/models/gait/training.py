@@ -37,28 +37,39 @@ weights reached, so it is not bit-identical to an uninterrupted run.
 from __future__ import annotations
 
 import math
-import pickle
-import tomllib
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, fields
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import torch
 
-from emotive.data.emotion import ALL_LABELS
-from emotive.errors import EmotiveError
-from emotive.models.epochs import EpochOutcome, TrainingLog, resumed_log, run_epochs
+from emotive.errors import ConfigError
+from emotive.models.gait.affect import gait_affective
 from emotive.models.gait.config import GaitConfig
 from emotive.models.gait.controls import gait_controls
 from emotive.models.gait.data import DEFAULT_DATASETS, GaitBatch, GaitData, load_gait_data
 from emotive.models.gait.losses import LOSS_TERMS, GaitLoss, GaitRig, rig_positions
+from emotive.models.gait.model import load_gait_checkpoint
 from emotive.models.gait.network import (
     GaitInputs,
     GaitNetwork,
     GaitOutputs,
     same_hemisphere,
+)
+from emotive.models.training import (
+    DictConfig,
+    EpochOutcome,
+    TrainingLog,
+    check_resumable,
+    load_settings,
+    restore_rng_state,
+    resumed_log,
+    rng_state,
+    run_epochs,
+    seed_everything,
+    training_paths,
 )
 
 #: Names of the logged loss values: the five terms then their weighted sum.
@@ -72,12 +83,8 @@ CSV_COLUMNS: tuple[str, ...] = (
 )
 
 
-class ConfigError(EmotiveError):
-    """A training config file that is missing or holds a bad key or value."""
-
-
 @dataclass(frozen=True)
-class GaitTrainSettings:
+class GaitTrainSettings(DictConfig):
     """How the gait network is trained (the ``[train]`` section of ``configs/gait.toml``).
 
     Attributes:
@@ -144,65 +151,20 @@ class GaitTrainSettings:
             raise ValueError(f"datasets must be a non-empty list of names, got {self.datasets!r}")
         object.__setattr__(self, "datasets", tuple(self.datasets))
 
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-safe dict of every field (tuples as lists)."""
-        return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
 
+def load_gait_settings(path: str | Path) -> tuple[GaitConfig, GaitTrainSettings]:
+    """Read ``[model]`` and ``[train]`` from a TOML file.
 
-def load_settings(path: str | Path, model_class: type = GaitConfig,
-                  train_class: type = GaitTrainSettings,
-                  model_defaults: dict[str, Any] | None = None) -> tuple[Any, Any]:
-    """Read ``[model]`` (``model_class`` fields, by default :class:`GaitConfig`) and
-    ``[train]`` (``train_class`` fields, by default :class:`GaitTrainSettings`) from a TOML
-    file.
-
-    Missing keys keep their defaults, except that ``[model] labels`` defaults to
-    :data:`~emotive.data.emotion.ALL_LABELS` (every style a label of the emotion vector) and
-    ``model_defaults`` fills keys the file cannot give (e.g. sizes set by the data).
+    Read ``[model]`` (:class:`GaitConfig` fields) and ``[train]``
+    (:class:`GaitTrainSettings` fields) from a TOML file
+    (:func:`emotive.models.training.load_settings`: ``[model] labels`` defaults to every
+    style).
 
     Raises:
         ConfigError: the file is missing or not TOML, or has an unknown section, an unknown
             key or a bad value; the message names the file and the key.
     """
-    path = Path(path)
-    try:
-        doc = tomllib.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise ConfigError(f"{path}: config file not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ConfigError(f"{path}: cannot read the config file ({exc})") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"{path}: not valid TOML ({exc})") from None
-    unknown = sorted(set(doc) - {"model", "train"})
-    if unknown:
-        raise ConfigError(f"{path}: unknown section [{unknown[0]}]; known: [model], [train]")
-    built: list[Any] = []
-    for section, cls in (("model", model_class), ("train", train_class)):
-        values = doc.get(section, {})
-        if not isinstance(values, dict):
-            raise ConfigError(f"{path}: {section} must be a [{section}] table")
-        known = [f.name for f in fields(cls)]
-        for key in values:
-            if key not in known:
-                raise ConfigError(
-                    f"{path}: unknown key [{section}] {key}; known: {', '.join(known)}"
-                )
-        values = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items()}
-        if cls is model_class and "labels" in known:
-            values.setdefault("labels", ALL_LABELS)
-        if cls is model_class:
-            for key in model_defaults or {}:
-                if key in values:
-                    raise ConfigError(f"{path}: [model] {key} is set from the data; remove it")
-            values.update(model_defaults or {})
-        try:
-            built.append(cls(**values))
-        except (ValueError, TypeError, EmotiveError) as exc:
-            message = str(exc).removeprefix(f"{cls.__name__}.")
-            key = next((k for k in values if message.startswith(k)), None)
-            where = f"[{section}] {key}" if key else f"[{section}]"
-            raise ConfigError(f"{path}: {where}: {message}") from None
-    return built[0], built[1]
+    return load_settings(path, GaitConfig, GaitTrainSettings)
 
 
 @dataclass
@@ -258,8 +220,6 @@ def rollout(network: GaitNetwork, batch: GaitBatch, mask: np.ndarray, rig: GaitR
     Returns:
         Predictions for frames ``1 .. T``: ``(B, T, J, 4)``, ``(B, T, J, 4)``, ``(B, T, 3)``.
     """
-    from emotive.models.gait.affect import gait_affective
-
     inputs = batch.inputs()
     frames = inputs.rotations.shape[1]
     use_affective = network.config.use_affective
@@ -308,7 +268,17 @@ def epoch_order(data: GaitData, settings: GaitTrainSettings, rng: np.random.Gene
     return rng.choice(n, size=n, replace=True, p=weight / weight.sum())
 
 
-def _batches(n: int, size: int, order: np.ndarray | None = None) -> list[np.ndarray]:
+def batch_indices(n: int, size: int, order: np.ndarray | None = None) -> list[np.ndarray]:
+    """``order`` (by default ``0 .. n - 1``) cut into batches of ``size`` (the last shorter).
+
+    Args:
+        n: items in all.
+        size: items per batch.
+        order: ``(n,)`` item indices in the order to take them.
+
+    Returns:
+        ``ceil(n / size)`` arrays of item indices.
+    """
     idx = np.arange(n) if order is None else order
     return [idx[i:i + size] for i in range(0, n, size)]
 
@@ -332,7 +302,7 @@ def evaluate_loss(network: GaitNetwork, data: GaitData, loss: GaitLoss, batch_si
     sums: dict[str, float] = {}
     network.eval()
     with torch.no_grad():
-        for idx in _batches(len(data), batch_size):
+        for idx in batch_indices(len(data), batch_size):
             batch = data.batch(idx)
             outputs = rollout(network, batch, teacher_forcing_mask(data.length,
                                                                    teacher_forcing, rng),
@@ -342,51 +312,6 @@ def evaluate_loss(network: GaitNetwork, data: GaitData, loss: GaitLoss, batch_si
             for k, v in terms.items():
                 sums[k] = sums.get(k, 0.0) + v * len(idx)
     return {k: v / max(len(data), 1) for k, v in sums.items()}
-
-
-def _rng_state(rng: np.random.Generator) -> dict[str, Any]:
-    return {"numpy": rng.bit_generator.state, "torch": torch.get_rng_state()}
-
-
-def _set_rng_state(rng: np.random.Generator, state: dict[str, Any]) -> None:
-    rng.bit_generator.state = state["numpy"]
-    torch.set_rng_state(state["torch"])
-
-
-def training_paths(out_dir: Path, resume: bool) -> Path:
-    """``out_dir`` created, and its ``last.pt``.
-
-    Raises:
-        ConfigError: ``resume`` without a ``last.pt`` to resume from.
-    """
-    out_dir.mkdir(parents=True, exist_ok=True)
-    last_path = out_dir / "last.pt"
-    if resume and not last_path.exists():
-        raise ConfigError(f"{last_path}: no checkpoint to resume from")
-    return last_path
-
-
-def load_checkpoint(path: str | Path) -> tuple[GaitNetwork, dict[str, Any]]:
-    """The network of a checkpoint written by :func:`train_gait`, and the checkpoint.
-
-    Raises:
-        ConfigError: the file is missing or not a gait checkpoint.
-    """
-    path = Path(path)
-    try:
-        ckpt = torch.load(path, map_location="cpu", weights_only=True)
-        network = GaitNetwork(GaitConfig.from_dict(ckpt["config"]))
-        network.load_state_dict(ckpt["state"])
-    except FileNotFoundError:
-        raise ConfigError(f"{path}: checkpoint not found") from None
-    except (KeyError, ValueError, RuntimeError, TypeError, EOFError,
-            pickle.UnpicklingError) as exc:
-        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        raise ConfigError(f"{path}: not a gait checkpoint ({reason})") from None
-    except IsADirectoryError:
-        raise ConfigError(f"{path}: is a folder; give the checkpoint file in it") from None
-    network.eval()
-    return network, ckpt
 
 
 #: Config fields a fine-tuning run may change from its starting checkpoint.
@@ -401,7 +326,7 @@ def _initialize_from(network: GaitNetwork, path: str) -> None:
     Raises:
         ConfigError: the checkpoint is unusable or its model differs beyond loss settings.
     """
-    start, _ = load_checkpoint(path)
+    start, _ = load_gait_checkpoint(path)
     ours = {k: v for k, v in network.config.to_dict().items() if k not in _LOSS_FIELDS}
     theirs = {k: v for k, v in start.config.to_dict().items() if k not in _LOSS_FIELDS}
     differ = sorted(k for k in ours if ours[k] != theirs.get(k))
@@ -448,8 +373,7 @@ def train_gait(
         data = load_gait_data(config, settings.datasets, settings.window, settings.stride,
                               settings.split_seed, settings.max_clips, progress)
     train, val = data["train"], data.get("val")
-    torch.manual_seed(seed)
-    rng = np.random.default_rng(seed)
+    rng = seed_everything(seed)
     network = GaitNetwork(config)
     network.set_feature_statistics(**{k: tuple(torch.from_numpy(x) for x in v)
                                       for k, v in train.statistics().items()})
@@ -461,22 +385,18 @@ def train_gait(
     optimizer = torch.optim.Adam(network.parameters(), lr=settings.learning_rate)
     log = TrainingLog()
     if resume:
-        _, ckpt = load_checkpoint(last_path)
-        if ckpt["config"] != config.to_dict():
-            raise ConfigError(f"{last_path}: made with another [model] config; cannot resume")
-        saved = {k: v for k, v in ckpt["train"].items() if k != "epochs"}
-        if saved != {k: v for k, v in settings.to_dict().items() if k != "epochs"}:
-            raise ConfigError(f"{last_path}: made with other [train] settings; cannot resume")
+        _, ckpt = load_gait_checkpoint(last_path)
+        check_resumable(last_path, ckpt, config.to_dict(), settings.to_dict())
         network.load_state_dict(ckpt["state"])
         optimizer.load_state_dict(ckpt["optimizer"])
-        _set_rng_state(rng, ckpt["rng"])
+        restore_rng_state(rng, ckpt["rng"])
         log = resumed_log(ckpt)
 
-    def checkpoint(epoch: int, rng_state: dict[str, Any]) -> dict[str, Any]:
+    def checkpoint(epoch: int, state: dict[str, Any]) -> dict[str, Any]:
         return {
             "config": config.to_dict(), "train": settings.to_dict(),
             "state": network.state_dict(), "optimizer": optimizer.state_dict(),
-            "epoch": epoch, "rng": rng_state, "best_val": log.best_val,
+            "epoch": epoch, "rng": state, "best_val": log.best_val,
             "history": log.history, "seed": seed, "controls": controls,
         }
 
@@ -488,7 +408,7 @@ def train_gait(
         network.train()
         sums: dict[str, float] = {}
         seen = 0
-        for k, idx in enumerate(_batches(len(train), settings.batch_size,
+        for k, idx in enumerate(batch_indices(len(train), settings.batch_size,
                                          epoch_order(train, settings, rng))):
             batch = train.batch(idx)
             outputs = rollout(network, batch, teacher_forcing_mask(train.length, ratio, rng),
@@ -515,18 +435,19 @@ def train_gait(
                             _describe(val_terms or train_terms))
 
     run_epochs(log, settings.epochs, math.ceil(len(train) / settings.batch_size), out_dir,
-               CSV_COLUMNS, run_epoch, checkpoint, lambda: _rng_state(rng), progress)
+               CSV_COLUMNS, run_epoch, checkpoint, lambda: rng_state(rng), progress)
     network.eval()
-    return GaitTrainResult(network, log.history, out_dir,
-                           log.best_val if math.isfinite(log.best_val) else math.nan)
+    return GaitTrainResult(network, log.history, out_dir, log.best_or_nan)
 
 
 def loss_outcome(terms: tuple[str, ...], train_terms: dict[str, float],
                  val_terms: dict[str, float], lr: float, teacher_forcing: float,
                  detail: str = "") -> EpochOutcome:
-    """An epoch of a trainer of loss terms: its log row (``train_``/``val_`` of every name in
-    ``terms``, learning rate, teacher forcing), scored by the validation total (the training
-    total without validation data)."""
+    """An epoch of a trainer of loss terms.
+
+    Its log row (``train_``/``val_`` of every name in ``terms``, learning rate, teacher forcing),
+    scored by the validation total (the training total without validation data).
+    """
     row: dict[str, float | None] = {}
     for name in terms:
         row[f"train_{name}"] = train_terms.get(name)

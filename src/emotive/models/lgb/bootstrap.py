@@ -80,10 +80,10 @@ Why, measured on the Bandai Namco data (``bench/eval_lgb.py``; its JSON in
   over three seeds of 3,000 frames); ``0.5`` (0.72-1.00) keeps jumps to nearer passages.
 * Order 1 on positions knows no direction, so a jump may reverse a swing (3.2 reversals a
   second on the synthetic swing against 1.4): the arms and lower body use order 2 with a lag of
-  5 frames (see :data:`emotive.models.lgb.model.ORDERS`).
+  5 frames (see :data:`emotive.models.lgb.resampler.ORDERS`).
 * ``carry = 0.9`` fades a jump's offset over about 10 frames (a third of a second); it pulls
   the path back to the data geometrically, so it cannot drift.
-  :class:`~emotive.models.lgb.model.EmotionResampler` draws with ``carry = 0`` and applies the
+  :class:`~emotive.models.lgb.resampler.EmotionResampler` draws with ``carry = 0`` and applies the
   same fading itself, to the pelvis path and to joint rotations after the IK, so that blended
   positions never shorten a limb.
 
@@ -100,6 +100,9 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
+from scipy import sparse
+from scipy.signal import lfilter
+from scipy.spatial import cKDTree
 
 from emotive.errors import EmotiveError
 
@@ -161,8 +164,11 @@ def check_finite(name: str, values: np.ndarray) -> None:
 
 
 def min_observations(order: int, k_max: int = K_MAX, lag: int = 1) -> int:
-    """Fewest observations :meth:`LocalGridBootstrap.fit` accepts: twice the largest
-    neighbourhood (so that a neighbourhood stays local) plus the frames one state spans."""
+    """Fewest observations :meth:`LocalGridBootstrap.fit` accepts.
+
+    Twice the largest neighbourhood (so that a neighbourhood stays local) plus the frames one state
+    spans.
+    """
     return 2 * k_max + (order - 1) * lag + 1
 
 
@@ -184,8 +190,6 @@ def carry_offsets(
     Returns:
         ``(n, D)`` generated values.
     """
-    from scipy.signal import lfilter
-
     num = len(values)
     prev = np.concatenate(([start], index[:-1]))
     jumps = values[prev] - values[(index - 1) % num]
@@ -265,8 +269,6 @@ class LocalGridBootstrap:
             LGBError: wrong shapes or NaN/infinite values.
             TooLittleDataError: fewer than :func:`min_observations` observations.
         """
-        from scipy.spatial import cKDTree
-
         x = np.asarray(observed, dtype=np.float64)
         if x.ndim != 2 or x.shape[1] < 1:
             raise LGBError(f"{name}: observations must have shape (N, D), got {x.shape}")
@@ -313,8 +315,6 @@ class LocalGridBootstrap:
             dist: ``(N, k_max)`` distances of each state's nearest states, nearest first.
             idx: ``(N, k_max)`` their indices.
         """
-        from scipy import sparse
-
         n = len(self.z_)
         radius = np.clip(self.base_radius_, dist[:, self.k_min - 1], dist[:, -1])
         keep = dist <= radius[:, None]

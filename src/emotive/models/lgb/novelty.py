@@ -11,7 +11,7 @@ The threshold (:class:`NoveltyReference`): how close two *distinct* captured cli
 emotion come, the :data:`THRESHOLD_PERCENTILE`-th percentile over every captured window of the
 distance to the nearest window of another clip. A new take of the emotion would therefore have
 5 % of its windows at or below it; replaying a captured passage through the IK gives about
-0.1 mm. The guard (:meth:`emotive.models.lgb.model.EmotionResampler.sample_features`)
+0.1 mm. The guard (:meth:`emotive.models.lgb.resampler.EmotionResampler.sample_features`)
 redraws every stretch whose window is not above the threshold.
 
 Legend: ``T`` frames, ``P`` effector points, ``L`` frames of a window, ``K`` windows, ``M``
@@ -41,6 +41,8 @@ def windows(points: np.ndarray, length: int, hop: int = 1) -> tuple[np.ndarray, 
 
     Args:
         points: ``(T, 3P)`` effector points per frame.
+        length: frames per window, ``L``.
+        hop: frames between window starts.
 
     Returns:
         Start frames ``(K,)`` and windows ``(K, L * 3P)`` (none if ``T < L``).
@@ -53,8 +55,11 @@ def windows(points: np.ndarray, length: int, hop: int = 1) -> tuple[np.ndarray, 
 
 
 def nearest_distance(queries: np.ndarray, pool: np.ndarray) -> np.ndarray:
-    """RMS point distance (metres) from each window of ``queries`` ``(K, L*3P)`` to the nearest
-    of ``pool`` ``(M, L*3P)``; ``(K,)``, infinite where the pool is empty."""
+    """RMS point distance from each query window to the nearest of ``pool``.
+
+    RMS point distance (metres) from each window of ``queries`` ``(K, L*3P)`` to the nearest
+    of ``pool`` ``(M, L*3P)``; ``(K,)``, infinite where the pool is empty.
+    """
     best = np.full(len(queries), np.inf)
     if not len(pool):
         return best
@@ -107,8 +112,11 @@ class NoveltyReference:
         return cls(pool, threshold, between, length)
 
     def novelty(self, points: np.ndarray, hop: int = 1) -> tuple[np.ndarray, np.ndarray]:
-        """Start frames ``(K,)`` and nearest captured-window distances ``(K,)`` of every
-        ``hop``-th window of ``points`` ``(T, 3P)``."""
+        """Start frames and nearest captured-window distances of every ``hop``-th window.
+
+        Start frames ``(K,)`` and nearest captured-window distances ``(K,)`` of every
+        ``hop``-th window of ``points`` ``(T, 3P)``.
+        """
         starts, w = windows(points, self.length, hop)
         return starts, nearest_distance(w, self.pool)
 
@@ -119,7 +127,7 @@ class NoveltyReport:
 
     Attributes:
         threshold: metres (see :class:`NoveltyReference`).
-        windows: windows checked (every :data:`~emotive.models.lgb.model.GUARD_HOP`-th frame).
+        windows: windows checked (every :data:`~emotive.models.lgb.resampler.GUARD_HOP`-th frame).
         redrawn: stretches redrawn.
         rounds: check-and-redraw rounds run.
         closest: metres, the smallest novelty of a checked window after the guard.

@@ -16,12 +16,15 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from emotive.errors import EmotiveError
-from emotive.models.config_io import DictConfig
+from emotive.models.training import DictConfig
 
 
 class TransferError(EmotiveError):
-    """Input the style transfer cannot use: unknown styles or actions, short or NaN input,
-    a rig that cannot be mapped, a missing or stale index."""
+    """Input the style transfer cannot use.
+
+    Unknown styles or actions, short or NaN input, a rig that cannot be mapped, a missing or stale
+    index.
+    """
 
 
 @dataclass(frozen=True)

@@ -34,8 +34,9 @@ RATE_BOUNDS = (0.05, 20.0)
 
 
 def body_features(points: np.ndarray, yaws: np.ndarray, root_slot: int = 0) -> np.ndarray:
-    """``(T, F)`` features for warping: role points relative to the root on the ground and
-    turned to face +Z, and their velocities.
+    """``(T, F)`` features for warping.
+
+    Role points relative to the root on the ground and turned to face +Z, and their velocities.
 
     Args:
         points: ``(T, P, 3)`` point clouds.
@@ -145,8 +146,11 @@ MIN_STRIKES = 2
 
 
 def strike_events(contacts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Frames where a foot lands (rising edges of ``(T, 2)`` contacts) and which foot
-    (``0`` left, ``1`` right), in time order."""
+    """Frames where a foot lands, and which foot, in time order.
+
+    Frames where a foot lands (rising edges of ``(T, 2)`` contacts) and which foot
+    (``0`` left, ``1`` right), in time order.
+    """
     c = np.asarray(contacts, dtype=bool)
     rise = np.zeros_like(c)
     rise[1:] = c[1:] & ~c[:-1]
@@ -157,7 +161,9 @@ def strike_events(contacts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 @dataclass(frozen=True)
 class GaitCycle:
-    """The canonical gait cycle of a cyclic action (paper section 4: the reference's contact
+    """The canonical gait cycle of a cyclic action.
+
+    The canonical gait cycle of a cyclic action (paper section 4: the reference's contact
     events annotate the canonical timeline).
 
     Canonical time runs over ``[0, length)`` and wraps: the left foot lands at 0, the right
@@ -173,8 +179,11 @@ class GaitCycle:
 
     @classmethod
     def of(cls, contacts: np.ndarray) -> GaitCycle | None:
-        """The cycle of a reference clip's ``(T, 2)`` contacts, or None when it has fewer
-        than :data:`MIN_STRIKES` strikes of either foot (not a gait)."""
+        """The cycle of a reference clip's ``(T, 2)`` contacts, or None.
+
+        The cycle of a reference clip's ``(T, 2)`` contacts, or None when it has fewer
+        than :data:`MIN_STRIKES` strikes of either foot (not a gait).
+        """
         frames, feet = strike_events(contacts)
         left, right = frames[feet == 0], frames[feet == 1]
         if len(left) < MIN_STRIKES or len(right) < MIN_STRIKES - 1:

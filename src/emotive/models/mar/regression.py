@@ -62,8 +62,11 @@ class Prediction:
 
 
 def mixture_weights(distances: np.ndarray, delta: float) -> np.ndarray:
-    """Equation 4: ``(c,)`` weights ``~ exp(-D_j / (delta min D))`` of mean distances ``(c,)``,
-    summing to one."""
+    """Equation 4: ``(c,)`` weights of mean distances ``(c,)``, summing to one.
+
+    Equation 4: ``(c,)`` weights ``~ exp(-D_j / (delta min D))`` of mean distances ``(c,)``,
+    summing to one.
+    """
     d = np.asarray(distances, dtype=np.float64)
     low = max(float(d.min()), 1e-12)
     logits = -(d - d.min()) / (delta * low)
@@ -76,6 +79,9 @@ def track_rows(db: MARDatabase, classes: np.ndarray, tau: np.ndarray,
     """Tracks of ``classes`` at canonical times ``tau`` (same shape ``(...)``).
 
     Args:
+        db: the database.
+        classes: class of each lookup, shape ``(...)``.
+        tau: canonical time of each lookup, shape ``(...)``.
         standard: pose vectors standardized (:func:`standardize`).
 
     Returns:
@@ -174,9 +180,12 @@ def ridge_ar3(x1: np.ndarray, x2: np.ndarray, x3: np.ndarray, y: np.ndarray, rid
 
 
 def _pairs(db: MARDatabase, frames: np.ndarray, styles: np.ndarray) -> tuple[np.ndarray, ...]:
-    """Standardized training pairs of neighbours ``frames`` ``(c, K)`` for output ``styles``:
+    """Standardized training pairs of neighbours ``frames`` for output ``styles``.
+
+    Standardized training pairs of neighbours ``frames`` ``(c, K)`` for output ``styles``:
     inputs ``x_t, x_{t-1}`` ``(c, K, D)``, outputs ``y_t, y_{t-1}`` ``(c, o, K, D)``, the
-    output tracks' frames per canonical frame ``(c, o, K)``."""
+    output tracks' frames per canonical frame ``(c, o, K)``.
+    """
     prev = db.prev[frames]
     out_cls = np.moveaxis(db.output_classes()[db.frame_class[frames]][..., styles], -1, 1)
     both = np.stack((frames, prev))

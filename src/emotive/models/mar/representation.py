@@ -22,7 +22,7 @@ local model of the style transfer) gives nonsense legs. The database computes th
 them; a codec without references (``reference`` None) uses the identity.
 
 Joints above the mover (Bandai's static ``joint_Root``) are folded into it, as in
-:func:`emotive.models.gait.data.fold_into_root`. The heading is the facing of
+:func:`emotive.core.root.fold_into_root`. The heading is the facing of
 :func:`emotive.core.ops.facing_directions` (from hips and shoulders), computed here from the
 role points of one frame at a time so that the encoder can run on a stream.
 
@@ -51,6 +51,7 @@ from emotive.transforms.fast_np import (
     yaw_quat,
 )
 from emotive.transforms.kinematics import PoseFK, forward_kinematics_np
+from emotive.transforms.np_rotations import quaternion_mean
 
 #: Columns of the root motion: sideways step, forward step, turn, height.
 ROOT_COLUMNS = 4
@@ -133,8 +134,11 @@ class RigCodec:
 
     def slot_rotations(self, rotations: np.ndarray, grot_mover: np.ndarray,
                        yaw: np.ndarray) -> np.ndarray:
-        """``(T, 1 + J_b, 4)`` rotations of the exponential-map slots (absolute, before the
-        reference is taken off)."""
+        """``(T, 1 + J_b, 4)`` rotations of the exponential-map slots.
+
+        ``(T, 1 + J_b, 4)`` rotations of the exponential-map slots (absolute, before the
+        reference is taken off).
+        """
         tilt = qmul(yaw_quat(-yaw), grot_mover)
         return np.concatenate((tilt[:, None], rotations[:, self.below]), 1)
 
@@ -194,7 +198,9 @@ class RigCodec:
 
     def world_points(self, rotations: np.ndarray, positions: np.ndarray) -> tuple[
             np.ndarray, np.ndarray, np.ndarray]:
-        """World rotations ``(T, J, 4)``, positions ``(T, J, 3)`` and role points ``(T, P, 3)``
+        """World rotations, positions and role points of local rotations and translations.
+
+        World rotations ``(T, J, 4)``, positions ``(T, J, 3)`` and role points ``(T, P, 3)``
         (metres) of local rotations ``(T, J, 4)`` and translations ``(T, J, 3)``.
 
         A single frame (streaming) goes through a faster path that returns only the mover's
@@ -215,9 +221,12 @@ class RigCodec:
 
     def _stream_points(self, rotations: np.ndarray, positions: np.ndarray) -> tuple[
             np.ndarray, np.ndarray, np.ndarray]:
-        """:meth:`world_points` of one frame by :class:`~emotive.transforms.kinematics.PoseFK`
+        """:meth:`world_points` of one frame by forward kinematics.
+
+        :meth:`world_points` of one frame by :class:`~emotive.transforms.kinematics.PoseFK`
         (bones of the codec's fixed lengths); only the mover's world transform is returned in
-        the rotations and positions (the rest is left at zero)."""
+        the rotations and positions (the rest is left at zero).
+        """
         if "fk" not in self._cache:
             offsets = self.local_positions.copy()
             offsets[self.mover] = 0.0
@@ -337,14 +346,20 @@ class RigCodec:
 
 
 def slot_quaternions(vectors: np.ndarray) -> np.ndarray:
-    """``(T, S, 4)`` rotations of the exponential-map slots of ``(T, D)`` pose vectors
-    encoded without a reference."""
+    """``(T, S, 4)`` rotations of the exponential-map slots of pose vectors.
+
+    ``(T, S, 4)`` rotations of the exponential-map slots of ``(T, D)`` pose vectors
+    encoded without a reference.
+    """
     return expmap_to_quat(vectors[:, ROOT_COLUMNS:].reshape(len(vectors), -1, 3))
 
 
 def rebase(vectors: np.ndarray, reference: np.ndarray) -> np.ndarray:
-    """``(T, D)`` pose vectors encoded without a reference, re-expressed relative to
-    ``reference`` ``(S, 4)`` (what a codec :meth:`~RigCodec.with_reference` would give)."""
+    """``(T, D)`` pose vectors re-expressed relative to ``reference``.
+
+    ``(T, D)`` pose vectors encoded without a reference, re-expressed relative to
+    ``reference`` ``(S, 4)`` (what a codec :meth:`~RigCodec.with_reference` would give).
+    """
     rot = slot_quaternions(vectors)
     inv = np.asarray(reference) * CONJUGATE
     rot = qmul(np.broadcast_to(inv, rot.shape), rot)
@@ -355,10 +370,11 @@ def rebase(vectors: np.ndarray, reference: np.ndarray) -> np.ndarray:
 
 
 def reference_rotations(slots: list[np.ndarray]) -> np.ndarray:
-    """``(S, 4)`` mean rotation of each slot over clips' ``(T, S, 4)`` slot rotations
-    (:meth:`RigCodec.slot_rotations`; :func:`~emotive.transforms.np_rotations.quaternion_mean`)."""
-    from emotive.transforms.np_rotations import quaternion_mean
+    """``(S, 4)`` mean rotation of each slot over clips' slot rotations.
 
+    ``(S, 4)`` mean rotation of each slot over clips' ``(T, S, 4)`` slot rotations
+    (:meth:`RigCodec.slot_rotations`; :func:`~emotive.transforms.np_rotations.quaternion_mean`).
+    """
     return quaternion_mean(np.concatenate(slots), axis=0)
 
 

@@ -1,4 +1,6 @@
-"""Motion retargeting between rigs through the joint roles (paper section 5.1, after Monzani
+"""Motion retargeting between rigs through the joint roles (paper section 5.1).
+
+Motion retargeting between rigs through the joint roles (paper section 5.1, after Monzani
 et al. 2000: an intermediate skeleton and inverse kinematics).
 
 The source clip's role points are scaled by the ratio of the leg lengths; the target rig's
@@ -20,6 +22,7 @@ from emotive.core.roles import ROLES, resolve_roles
 from emotive.core.skeleton import Skeleton
 from emotive.errors import RigError
 from emotive.features.contacts import leg_length
+from emotive.ik import resolve_chains, solve_chains
 from emotive.models.mar.representation import RigMappingError
 from emotive.transforms.np_rotations import (
     matrix_to_quaternion,
@@ -35,8 +38,11 @@ def same_rig(a: Skeleton, b: Skeleton) -> bool:
 
 
 def body_frames(points: np.ndarray) -> np.ndarray:
-    """``(T, 3, 3)`` orthonormal body frames (columns: left, up, forward) of role points
-    ``(T, P, 3)`` in :data:`ROLES` order."""
+    """``(T, 3, 3)`` orthonormal body frames of role points.
+
+    ``(T, 3, 3)`` orthonormal body frames (columns: left, up, forward) of role points
+    ``(T, P, 3)`` in :data:`ROLES` order.
+    """
     slot = {r: i for i, r in enumerate(ROLES)}
     left = points[:, slot["l_hip"]] - points[:, slot["r_hip"]]
     left /= np.maximum(np.linalg.norm(left, axis=-1, keepdims=True), 1e-12)
@@ -64,8 +70,6 @@ def retarget(source: Motion, template: Motion, source_roles=None, target_roles=N
     Raises:
         RigMappingError: either rig lacks the roles.
     """
-    from emotive.ik import resolve_chains, solve_chains
-
     try:
         src_roles = resolve_roles(source.skeleton, source_roles)
         tgt_roles = resolve_roles(template.skeleton, target_roles)

@@ -137,14 +137,20 @@ class PointCloudSearch:
         return self.db.points[self.index[frames]]
 
     def reduce(self, window: np.ndarray, yaw: float) -> np.ndarray:
-        """``(d,)`` reduced features of a query window ``(s, P, 3)`` whose newest frame has
-        heading ``yaw``."""
+        """``(d,)`` reduced features of a query window.
+
+        ``(d,)`` reduced features of a query window ``(s, P, 3)`` whose newest frame has
+        heading ``yaw``.
+        """
         full = canonical_windows(window[None], np.array([yaw]), self.weights)[0]
         return (full - self.db.pca_mean) @ self.db.pca_basis
 
     def _screen(self, feature: np.ndarray, allowed: np.ndarray) -> np.ndarray:
-        """The ``max_classes`` classes among ``allowed`` whose frames come nearest in a tree
-        over all their frames."""
+        """The ``max_classes`` classes among ``allowed`` whose frames come nearest.
+
+        The ``max_classes`` classes among ``allowed`` whose frames come nearest in a tree
+        over all their frames.
+        """
         cfg = self.config
         if len(allowed) <= cfg.max_classes:
             return allowed
@@ -177,8 +183,11 @@ class PointCloudSearch:
 
     def brute_force(self, window: np.ndarray, allowed: np.ndarray,
                     k: int | None = None) -> Neighbours:
-        """The same as :meth:`search` with exact distances to every frame of every allowed
-        class (the baseline of the speed benchmark)."""
+        """The same as :meth:`search` with exact distances (the benchmark's baseline).
+
+        The same as :meth:`search` with exact distances to every frame of every allowed
+        class (the baseline of the speed benchmark).
+        """
         k = k or self.config.k
         classes = np.asarray(allowed, dtype=np.int64)
         return self._finish(window, classes, [self.class_frames[c] for c in classes], k)

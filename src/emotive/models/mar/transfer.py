@@ -27,8 +27,10 @@ import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
 from emotive.core.motion import Motion
-from emotive.data.emotion import Emotion, EmotionSchedule
+from emotive.core.ops import resample
+from emotive.data.emotion import Emotion, EmotionSchedule, coerce_blend
 from emotive.errors import EmotionError
+from emotive.ik import pin_feet
 from emotive.models.mar.config import TransferError
 from emotive.models.mar.database import MARDatabase
 from emotive.models.mar.regression import METHODS, predict, standardize, track_rows
@@ -70,21 +72,16 @@ def parse_style(style: StyleSpec, db: MARDatabase) -> np.ndarray:
     """``(S,)`` weights over :attr:`MARDatabase.styles` of a style spec.
 
     Args:
-        style: ``"proud=0.6,angry=0.4"``, a style name, an :class:`Emotion`, a mapping
-            ``{style: weight}`` or an ``(S,)`` weight array.
+        style: ``"proud=0.6,angry=0.4"``, a style name, ``"valence=V,arousal=A"``, an
+            :class:`Emotion`, a mapping ``{style: weight}`` or an ``(S,)`` weight array
+            (:func:`~emotive.data.emotion.coerce_blend`).
+        db: the database whose styles the weights are over.
 
     Raises:
         TransferError: unknown style names or bad weights; the message lists the known styles.
     """
-    labels = db.styles
     try:
-        if isinstance(style, np.ndarray):
-            return Emotion(style, labels).weights.copy()
-        if isinstance(style, Emotion):
-            return Emotion.from_dict(style.to_dict(), labels).weights.copy()
-        if isinstance(style, Mapping):
-            return Emotion.from_dict(style, labels).weights.copy()
-        return Emotion.parse(str(style), labels).weights.copy()
+        return coerce_blend(style, db.styles).weights.copy()
     except EmotionError as exc:
         raise TransferError(f"style {style!r}: {exc}") from None
 
@@ -225,8 +222,11 @@ class StyleTransfer:
                              mixture)
 
     def _footplants(self, nb) -> np.ndarray:
-        """``(2,)`` footplant likelihood: inverse-distance vote of the nearest lower-body
-        neighbours, on the output styles' contacts at their canonical times."""
+        """``(2,)`` footplant likelihood from the nearest lower-body neighbours.
+
+        ``(2,)`` footplant likelihood: inverse-distance vote of the nearest lower-body
+        neighbours, on the output styles' contacts at their canonical times.
+        """
         db = self.db
         frames, dist = self.search.footplants(nb)
         out_cls = db.output_classes()[db.frame_class[frames]][:, self.styles]
@@ -255,8 +255,11 @@ class TransferResult:
 
 def _retime(frames: list[TransferFrame], codec: RigCodec, fps: float) -> tuple[
         np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Output frames at whole output times: rotations ``(T, J, 4)``, positions ``(T, J, 3)``,
-    contact likelihoods ``(T, 2)`` and the input frame each comes from ``(T,)``."""
+    """Output frames at whole output times.
+
+    Rotations ``(T, J, 4)``, positions ``(T, J, 3)``, contact likelihoods ``(T, 2)`` and the input
+    frame each comes from ``(T,)``.
+    """
     times = np.array([f.time for f in frames])
     grid = np.arange(0.0, times[-1] + 1e-9, 1.0)
     vectors = np.stack([f.vector for f in frames])
@@ -295,12 +298,14 @@ def transfer_motion(
         db: the database.
         style: the output style, or an :class:`EmotionSchedule` over :attr:`MARDatabase.styles`
             (seconds of the input).
-        action, input_style: labels of the input, if known.
+        action: the input's action, if known.
+        input_style: the input's style, if known.
         rho: output share of the bias.
         role_map: role map of the input rig.
         pin: pin planted feet by IK.
         search: a shared search of ``db``.
-        method, bias: see :class:`StyleTransfer`.
+        method: the local model, see :class:`StyleTransfer`.
+        bias: use the bias, see :class:`StyleTransfer`.
 
     Returns:
         The output on the input's rig at the input's frame rate.
@@ -309,8 +314,6 @@ def transfer_motion(
         TransferError: a clip shorter than the window, NaN frames, unknown labels or styles.
         RigMappingError: the input rig lacks joint roles.
     """
-    from emotive.core.ops import resample
-
     name = motion.metadata.get("name", "the input")
     check_finite(motion, name)
     need = db.config.window
@@ -347,8 +350,6 @@ def transfer_motion(
     out = Motion(work.skeleton, rot, pos, db.config.fps, meta)
     pinned = False
     if pin and contacts.any():
-        from emotive.ik import pin_feet
-
         out = pin_feet(out, contacts).motion
         pinned = True
     if foreign:

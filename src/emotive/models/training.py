@@ -1,0 +1,394 @@
+"""Training machinery shared by the trainers (gait network, QuaterNet, FCRBM).
+
+* Config I/O: :class:`DictConfig` (a frozen dataclass to and from a JSON-safe dict, as saved
+  in every checkpoint) and :func:`load_settings` (``[model]`` and ``[train]`` of a TOML file).
+* Random state: :func:`seed_everything`, :func:`rng_state`, :func:`restore_rng_state`.
+* Checkpoints: :func:`save_checkpoint` (atomic), :func:`read_checkpoint` (typed errors),
+  :func:`slim_checkpoint` (the committed, optimizer-free copy).
+* Resume: :func:`training_paths`, :func:`check_resumable`, :func:`resumed_log`.
+* The epoch loop :func:`run_epochs`: a trainer gives its epoch (the updates over one pass of
+  the batches), its checkpoint and its random state; the loop keeps the log (one row per
+  epoch, ``log.csv`` rewritten atomically), writes ``best.pt`` when the epoch's score improves
+  and ``last.pt`` after every epoch, draws the progress bars, and on Ctrl-C saves the weights
+  reached in ``last.pt`` with the random state of the interrupted epoch's start, so that
+  ``--resume`` reruns that epoch with the same batch order.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import time
+import tomllib
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field, fields
+from pathlib import Path
+from typing import Any, Self, TypeVar
+
+import numpy as np
+import torch
+from rich.console import Console
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+from emotive.data.emotion import ALL_LABELS
+from emotive.errors import ConfigError, EmotiveError
+from emotive.io.atomic import atomic_output
+
+T = TypeVar("T")
+
+
+class DictConfig:
+    """Mixin of a frozen dataclass config: dict and JSON conversions.
+
+    Mixin of a frozen dataclass config: :meth:`to_dict`/:meth:`from_dict` (tuples stored as
+    lists) and their JSON texts; a checkpoint holds ``config.to_dict()``.
+    """
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-safe dict of every field (tuples as lists)."""
+        return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
+
+    @classmethod
+    def from_dict(cls, values: dict[str, Any]) -> Self:
+        """The config saved by :meth:`to_dict`.
+
+        Raises:
+            ValueError: a key that is not a field (a checkpoint of another model or version).
+        """
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(values) - known)
+        if unknown:
+            raise ValueError(f"unknown {cls.__name__} fields {unknown}; known: {sorted(known)}")
+        return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in values.items()})
+
+    def to_json(self) -> str:
+        """The config as a JSON text."""
+        return json.dumps(self.to_dict(), sort_keys=True)
+
+    @classmethod
+    def from_json(cls, text: str) -> Self:
+        """The config from :meth:`to_json` text."""
+        return cls.from_dict(json.loads(text))
+
+
+def load_settings(path: str | Path, model_class: type, train_class: type,
+                  model_defaults: dict[str, Any] | None = None) -> tuple[Any, Any]:
+    """Read ``[model]`` and ``[train]`` from a TOML file.
+
+    Read ``[model]`` (``model_class`` fields) and ``[train]`` (``train_class`` fields) from
+    a TOML file.
+
+    Missing keys keep their defaults, except that a ``[model] labels`` field defaults to
+    :data:`~emotive.data.emotion.ALL_LABELS` (every style a label of the emotion vector) and
+    ``model_defaults`` fills keys the file cannot give (e.g. sizes set by the data).
+
+    Args:
+        path: the TOML file.
+        model_class: dataclass of the ``[model]`` section.
+        train_class: dataclass of the ``[train]`` section.
+        model_defaults: ``[model]`` values set by the program; the file may not give them.
+
+    Returns:
+        ``(model_class(...), train_class(...))``.
+
+    Raises:
+        ConfigError: the file is missing or not TOML, or has an unknown section, an unknown
+            key or a bad value; the message names the file and the key.
+    """
+    path = Path(path)
+    try:
+        doc = tomllib.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise ConfigError(f"{path}: config file not found") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"{path}: cannot read the config file ({exc})") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{path}: not valid TOML ({exc})") from None
+    unknown = sorted(set(doc) - {"model", "train"})
+    if unknown:
+        raise ConfigError(f"{path}: unknown section [{unknown[0]}]; known: [model], [train]")
+    built: list[Any] = []
+    for section, cls in (("model", model_class), ("train", train_class)):
+        values = doc.get(section, {})
+        if not isinstance(values, dict):
+            raise ConfigError(f"{path}: {section} must be a [{section}] table")
+        known = [f.name for f in fields(cls)]
+        for key in values:
+            if key not in known:
+                raise ConfigError(
+                    f"{path}: unknown key [{section}] {key}; known: {', '.join(known)}"
+                )
+        values = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items()}
+        if cls is model_class and "labels" in known:
+            values.setdefault("labels", ALL_LABELS)
+        if cls is model_class:
+            for key in model_defaults or {}:
+                if key in values:
+                    raise ConfigError(f"{path}: [model] {key} is set from the data; remove it")
+            values.update(model_defaults or {})
+        try:
+            built.append(cls(**values))
+        except (ValueError, TypeError, EmotiveError) as exc:
+            message = str(exc).removeprefix(f"{cls.__name__}.")
+            key = next((k for k in values if message.startswith(k)), None)
+            where = f"[{section}] {key}" if key else f"[{section}]"
+            raise ConfigError(f"{path}: {where}: {message}") from None
+    return built[0], built[1]
+
+
+def seed_everything(seed: int) -> np.random.Generator:
+    """Seed torch's global generator and return a NumPy generator of the same seed.
+
+    Seed torch's global generator (initial weights) and return a NumPy generator of the same
+    seed (batch order and other draws), in that order.
+    """
+    torch.manual_seed(seed)
+    return np.random.default_rng(seed)
+
+
+def rng_state(rng: np.random.Generator, generator: torch.Generator | None = None
+              ) -> dict[str, Any]:
+    """The state of ``rng`` and of ``generator``, as a checkpoint saves it.
+
+    ``{"numpy", "torch"}``: the state of ``rng`` and of ``generator`` (torch's global
+    generator when ``None``), as a checkpoint saves it.
+    """
+    torch_state = torch.get_rng_state() if generator is None else generator.get_state()
+    return {"numpy": rng.bit_generator.state, "torch": torch_state}
+
+
+def restore_rng_state(rng: np.random.Generator, state: dict[str, Any],
+                      generator: torch.Generator | None = None) -> None:
+    """Put back a state of :func:`rng_state` into ``rng`` and ``generator``.
+
+    Put back a state of :func:`rng_state` into ``rng`` and ``generator`` (torch's global
+    generator when ``None``).
+    """
+    rng.bit_generator.state = state["numpy"]
+    if generator is None:
+        torch.set_rng_state(state["torch"])
+    else:
+        generator.set_state(state["torch"])
+
+
+def save_checkpoint(path: Path, checkpoint: dict[str, Any]) -> None:
+    """``torch.save`` to ``path`` atomically."""
+    with atomic_output(path) as tmp:
+        torch.save(checkpoint, tmp)
+
+
+def read_checkpoint(path: str | Path, what: str, build: Callable[[dict[str, Any]], T],
+                    fix: str) -> tuple[T, dict[str, Any]]:
+    """A checkpoint dict and what ``build`` makes of it, every failure a :class:`ConfigError`.
+
+    Args:
+        path: the checkpoint file.
+        what: the kind of checkpoint expected, for the message (``"a gait checkpoint"``).
+        build: makes the model of the dict; any exception it raises means "not ``what``".
+        fix: how the user gets a good checkpoint, for the message.
+
+    Returns:
+        ``(build(checkpoint), checkpoint)``.
+
+    Raises:
+        ConfigError: ``path`` is a folder, is missing, or is not ``what``.
+    """
+    path = Path(path)
+    if path.is_dir():
+        raise ConfigError(f"{path}: is a folder; give the checkpoint file in it")
+    if not path.is_file():
+        raise ConfigError(f"{path}: checkpoint not found; {fix}")
+    try:
+        ckpt = torch.load(path, map_location="cpu", weights_only=True)
+        if not isinstance(ckpt, dict):
+            raise ValueError(f"holds a {type(ckpt).__name__}, not a dict")
+        built = build(ckpt)
+    except Exception as exc:  # any failure to read is the same problem for the user
+        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise ConfigError(f"{path}: not {what} ({reason}); {fix}") from None
+    return built, ckpt
+
+
+def slim_checkpoint(source: str | Path, out: str | Path, keys: tuple[str, ...]) -> Path:
+    """Copy the ``keys`` of a checkpoint (weights as float32) to ``out``, atomically.
+
+    For committing checkpoints without optimizer state. The caller validates ``source``.
+    """
+    ckpt = torch.load(source, map_location="cpu", weights_only=True)
+    slim: dict[str, Any] = {k: ckpt[k] for k in keys if k in ckpt}
+    slim["state"] = {k: v.float() if v.is_floating_point() else v
+                     for k, v in slim["state"].items()}
+    out = Path(out)
+    with atomic_output(out) as tmp:
+        torch.save(slim, tmp)
+    return out
+
+
+def training_paths(out_dir: Path, resume: bool) -> Path:
+    """``out_dir`` created, and its ``last.pt``.
+
+    Raises:
+        ConfigError: ``resume`` without a ``last.pt`` to resume from.
+    """
+    out_dir.mkdir(parents=True, exist_ok=True)
+    last_path = out_dir / "last.pt"
+    if resume and not last_path.exists():
+        raise ConfigError(f"{last_path}: no checkpoint to resume from")
+    return last_path
+
+
+def check_resumable(path: Path, checkpoint: dict[str, Any], config: dict[str, Any],
+                    train: dict[str, Any]) -> None:
+    """Check that a run of ``config`` and ``train`` may continue ``checkpoint``.
+
+    The same ``"config"``, and the same ``"train"`` but for ``epochs``.
+
+    Args:
+        path: the checkpoint's file, for the message.
+        checkpoint: the saved dict (its ``"config"`` and ``"train"`` as the trainer compares
+            them, e.g. with new settings filled with their defaults).
+        config: the run's ``config.to_dict()``.
+        train: the run's ``settings.to_dict()``.
+
+    Raises:
+        ConfigError: the model config or the training settings differ.
+    """
+    if checkpoint["config"] != config:
+        raise ConfigError(f"{path}: made with another [model] config; cannot resume (resume "
+                          "with the config it was made with, or give a new --out)")
+    saved = {k: v for k, v in checkpoint["train"].items() if k != "epochs"}
+    if saved != {k: v for k, v in train.items() if k != "epochs"}:
+        raise ConfigError(f"{path}: made with other [train] settings; cannot resume (only "
+                          "epochs may change; or give a new --out)")
+
+
+@dataclass(frozen=True)
+class EpochOutcome:
+    """What one epoch reports.
+
+    Attributes:
+        row: logged values (``epoch`` and ``seconds`` are added by the loop).
+        score: lower is better; decides ``best.pt``.
+        summary: one line for the bar and the printed line of the epoch.
+        detail: more text for the printed line only.
+    """
+
+    row: dict[str, float | None]
+    score: float
+    summary: str
+    detail: str = ""
+
+
+@dataclass
+class TrainingLog:
+    """The state the loop carries across epochs (and a checkpoint saves).
+
+    Attributes:
+        history: one row per finished epoch.
+        best_val: best score so far (``inf`` before the first epoch).
+        start_epoch: epochs already done (``0``, or the resumed checkpoint's epoch).
+    """
+
+    history: list[dict[str, Any]] = field(default_factory=list)
+    best_val: float = math.inf
+    start_epoch: int = 0
+
+    @property
+    def best_or_nan(self) -> float:
+        """The best score, ``nan`` when no epoch had a finite one."""
+        return self.best_val if math.isfinite(self.best_val) else math.nan
+
+
+def resumed_log(checkpoint: dict[str, Any]) -> TrainingLog:
+    """The loop's state saved in a ``last.pt``."""
+    epoch = int(checkpoint["epoch"])
+    return TrainingLog(list(checkpoint["history"])[:epoch], float(checkpoint["best_val"]), epoch)
+
+
+def write_log(path: Path, history: list[dict[str, Any]], columns: tuple[str, ...]) -> None:
+    """The training log, one row per epoch (a missing value left empty), atomically."""
+    text = io.StringIO()
+    writer = csv.DictWriter(text, fieldnames=columns, lineterminator="\n")
+    writer.writeheader()
+    for row in history:
+        writer.writerow({k: "" if row.get(k) is None else row[k] for k in columns})
+    with atomic_output(path) as tmp:
+        tmp.write_text(text.getvalue())
+
+
+def run_epochs(
+    log: TrainingLog,
+    epochs: int,
+    n_batches: int,
+    out_dir: Path,
+    columns: tuple[str, ...],
+    run_epoch: Callable[[int, Callable[[str], None]], EpochOutcome],
+    checkpoint: Callable[[int, Any], dict[str, Any]],
+    rng_state: Callable[[], Any],
+    progress: bool,
+) -> None:
+    """Epochs ``log.start_epoch`` to ``epochs``, updating ``log`` and the files of ``out_dir``.
+
+    Args:
+        log: history and best score so far (updated in place).
+        epochs: the epoch count to reach.
+        n_batches: batches per epoch (the inner bar's length).
+        out_dir: folder of ``last.pt``, ``best.pt`` and ``log.csv``.
+        columns: the columns of ``log.csv``.
+        run_epoch: ``run_epoch(epoch, batch_done)`` trains epoch ``epoch`` (0-based), calling
+            ``batch_done(info)`` after every update, and returns its :class:`EpochOutcome`.
+        checkpoint: ``checkpoint(epochs_done, rng_state)``, the dict to save (it reads ``log``).
+        rng_state: the trainer's random state now.
+        progress: progress bars and one line per epoch on stderr.
+
+    Raises:
+        KeyboardInterrupt: after writing ``last.pt`` (Ctrl-C).
+    """
+    last_path, best_path, csv_path = out_dir / "last.pt", out_dir / "best.pt", out_dir / "log.csv"
+    console = Console(stderr=True)
+    bars = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                    TimeElapsedColumn(), TextColumn("{task.fields[info]}"), console=console,
+                    disable=not progress, transient=True)
+    epoch, epoch_state = log.start_epoch, rng_state()
+    # Whether the weights moved since last.pt was written (Ctrl-C then has something to save).
+    dirty = False
+
+    try:
+        with bars:
+            epochs_task = bars.add_task("epochs", total=epochs, completed=log.start_epoch,
+                                        info="")
+            batch_task = bars.add_task("batches", total=n_batches, info="")
+
+            def batch_done(info: str) -> None:
+                nonlocal dirty
+                dirty = True
+                bars.update(batch_task, advance=1, info=info)
+
+            for epoch in range(log.start_epoch, epochs):
+                epoch_state, began = rng_state(), time.perf_counter()
+                bars.reset(batch_task, total=n_batches)
+                outcome = run_epoch(epoch, batch_done)
+                log.history.append({"epoch": epoch + 1, **outcome.row,
+                                    "seconds": round(time.perf_counter() - began, 3)})
+                improved = outcome.score < log.best_val
+                log.best_val = min(log.best_val, outcome.score)
+                done = checkpoint(epoch + 1, rng_state())
+                if improved:
+                    save_checkpoint(best_path, done)
+                save_checkpoint(last_path, done)
+                dirty = False
+                write_log(csv_path, log.history, columns)
+                summary = outcome.summary + ("  (best)" if improved else "")
+                bars.update(epochs_task, advance=1, info=summary)
+                if progress:
+                    bars.console.print(f"epoch {epoch + 1}/{epochs}: {summary}"
+                                       + (f"  {outcome.detail}" if outcome.detail else ""))
+    except KeyboardInterrupt:
+        if dirty:
+            del log.history[epoch:]
+            save_checkpoint(last_path, checkpoint(epoch, epoch_state))
+            write_log(csv_path, log.history, columns)
+        console.print(f"interrupted: wrote {last_path}; continue with --resume")
+        raise
