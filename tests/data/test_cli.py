@@ -2,13 +2,19 @@
 
 from __future__ import annotations
 
+import errno
+import os
+import shutil
 import sys
+import tarfile
+from pathlib import Path
 
 import numpy as np
 import pytest
 from typer.testing import CliRunner
 
 from emotive import cli
+from emotive.data import registry, store
 from emotive.data.stats import frame_stats
 from emotive.errors import DataError
 
@@ -99,3 +105,86 @@ def test_stats_table(fake):
 def test_stats_real_dataset1(home):
     md = invoke("stats", "bandai-namco-1", "--markdown").output
     assert "| all | all |" in md and "| 31914 | " in md
+
+
+def run_main(monkeypatch, capsys, *args: str) -> tuple[int, str, str]:
+    monkeypatch.setattr(sys, "argv", ["emotive", "data", *args])
+    with pytest.raises(SystemExit) as exit_info:
+        cli.main()
+    out = capsys.readouterr()
+    return exit_info.value.code, out.out, out.err
+
+
+def leftovers(home: Path) -> list[str]:
+    """Everything under the cache but its (empty) folders."""
+    return sorted(str(p.relative_to(home)) for p in home.rglob("*") if not p.is_dir())
+
+
+def full_disk(monkeypatch) -> None:
+    """Every copy into the cache (archive copy, member unpack) fails after a first write."""
+
+    def copy_then_fail(src, dst, length=0):
+        dst.write(src.read(1024))
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(shutil, "copyfileobj", copy_then_fail)
+
+
+def read_only(monkeypatch, home: Path) -> None:
+    """Creating anything under ``home`` fails as on a read-only file system (root ignores
+    permission bits, so chmod cannot make one)."""
+    real_mkdir, real_open = os.mkdir, os.open
+
+    def refuse(path) -> None:
+        if Path(path).is_relative_to(home):
+            raise OSError(errno.EROFS, "Read-only file system", str(path))
+
+    def mkdir(path, *args, **kwargs):
+        refuse(path)
+        return real_mkdir(path, *args, **kwargs)
+
+    def open_(path, flags, *args, **kwargs):
+        if flags & (os.O_CREAT | os.O_WRONLY | os.O_RDWR):
+            refuse(path)
+        return real_open(path, flags, *args, **kwargs)
+
+    monkeypatch.setattr(os, "mkdir", mkdir)
+    monkeypatch.setattr(os, "open", open_)
+
+
+@pytest.mark.parametrize("command", ["fetch", "path"])
+@pytest.mark.parametrize("fault", ["full-disk", "read-only-new", "read-only-existing"])
+def test_disk_faults_are_one_line_and_leave_nothing(command, fault, fake, isolated_home,
+                                                    no_shared_data, monkeypatch, capsys):
+    monkeypatch.setenv("EMOTIVE_DATA", str(fake.archive.parent))
+    if fault == "read-only-existing":
+        (isolated_home / "datasets").mkdir(parents=True)
+        (isolated_home / "archives").mkdir()
+    if fault == "full-disk":
+        full_disk(monkeypatch)
+    else:
+        read_only(monkeypatch, isolated_home)
+    code, out, err = run_main(monkeypatch, capsys, command, "fake-1")
+    assert code == 2, err
+    assert err.startswith("error: ") and err.count("\n") == 1, err
+    if fault == "full-disk":
+        assert "no space left on the disk holding" in err and "free some space" in err
+    else:
+        assert "read-only" in err and "set EMOTIVE_HOME to a writable folder" in err
+    assert str(isolated_home) in err and "Traceback" not in out + err
+    assert not isolated_home.exists() or leftovers(isolated_home) == []
+    assert not store.is_cached("fake-1")
+
+
+def test_fetch_refuses_links_in_archive(fake_tools, tmp_path, monkeypatch, capsys,
+                                        isolated_home):
+    folder, _ = fake_tools.write_folder(tmp_path / "unpacked")
+    link = tarfile.TarInfo(f"{folder.name}/data/escape")
+    link.type, link.linkname = tarfile.SYMTYPE, "../../../.."
+    archive = tmp_path / "fake-motion-1.tar.gz"
+    info = fake_tools.info(fake_tools.pack(folder, archive, [(link, None)]))
+    monkeypatch.setitem(registry.REGISTRY, info.name, info)
+    code, _, err = run_main(monkeypatch, capsys, "fetch", "fake-1", "--source", str(archive))
+    assert code == 2 and err.count("\n") == 1
+    assert f"'{folder.name}/data/escape' is a symbolic link" in err
+    assert not (isolated_home / "datasets" / info.folder).exists()

@@ -2,13 +2,21 @@
 
 from __future__ import annotations
 
+import contextlib
+import errno
 import hashlib
+import io
 import json
+import os
+import re
 import tarfile
+import threading
+from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 
 import pytest
 
+from emotive.data import download as download_mod
 from emotive.data import registry, store
 from emotive.errors import ChecksumError, DataError
 
@@ -109,6 +117,68 @@ class TestDownload:
         assert (folder / "data").is_dir()
 
 
+class _Endless(BaseHTTPRequestHandler):
+    """Streams up to 8 MiB with no Content-Length (a server that never says how big)."""
+
+    def log_message(self, *args: object) -> None:
+        pass
+
+    def do_GET(self) -> None:
+        self.send_response(200)
+        self.end_headers()
+        with contextlib.suppress(OSError):
+            for _ in range(128):
+                self.wfile.write(b"x" * (64 << 10))
+
+
+@pytest.fixture
+def endless_url():
+    server = ThreadingHTTPServer(("127.0.0.1", 0), _Endless)
+    server.daemon_threads = True
+    thread = threading.Thread(target=server.serve_forever, daemon=True)
+    thread.start()
+    try:
+        yield f"http://127.0.0.1:{server.server_address[1]}/fake-motion-1.tar.gz"
+    finally:
+        server.shutdown()
+        server.server_close()
+
+
+class TestDownloadLimits:
+    def test_declared_size_over_limit_refused(self, fake, http, monkeypatch, isolated_home):
+        http.routes["/big.tar.gz"] = (b"x" * (1 << 20), "range")
+        monkeypatch.setattr(download_mod, "MAX_DOWNLOAD_BYTES", 64 << 10)
+        with pytest.raises(DataError, match=r"1048576 bytes or more, over the limit of 65536"):
+            store.fetch_archive("fake-1", http.url("/big.tar.gz"))
+        assert list((isolated_home / "archives").iterdir()) == []
+
+    def test_undeclared_stream_stopped_at_limit(self, fake, endless_url, monkeypatch,
+                                                isolated_home):
+        monkeypatch.setattr(download_mod, "MAX_DOWNLOAD_BYTES", 256 << 10)
+        with pytest.raises(DataError, match=r"over the limit of 262144 bytes.*removed"):
+            store.fetch_archive("fake-1", endless_url)
+        assert list((isolated_home / "archives").iterdir()) == []
+
+    def test_full_disk_during_download_removes_part(self, fake, http, monkeypatch,
+                                                    isolated_home):
+        http.routes["/a.tar.gz"] = (fake.archive.read_bytes(), "range")
+        real_open = open
+
+        class FullDisk(io.FileIO):
+            def write(self, block):
+                raise OSError(errno.ENOSPC, "No space left on device")
+
+        def open_full(path, mode="r", *args, **kwargs):
+            if mode in ("wb", "ab"):
+                return FullDisk(path, mode)
+            return real_open(path, mode, *args, **kwargs)
+
+        monkeypatch.setattr(download_mod, "open", open_full, raising=False)
+        with pytest.raises(DataError, match=r"no space left on the disk holding .*archives"):
+            store.fetch_archive("fake-1", http.url("/a.tar.gz"))
+        assert list((isolated_home / "archives").iterdir()) == []
+
+
 class TestLocalCopy:
     def test_copy_from_file(self, fake, isolated_home):
         out = store.fetch_archive("fake-1", fake.archive)
@@ -136,6 +206,34 @@ class TestLocalCopy:
             store.fetch_archive("fake-1")
 
 
+def unsafe_member(top: str, kind: str, name: str, target: str = "") -> tuple:
+    member = tarfile.TarInfo(name.replace("TOP", top))
+    data: bytes | None = None
+    if kind == "file":
+        member.size, data = 4, b"evil"
+    else:
+        member.type = {"sym": tarfile.SYMTYPE, "hard": tarfile.LNKTYPE, "fifo": tarfile.FIFOTYPE,
+                       "chr": tarfile.CHRTYPE}[kind]
+        member.linkname = target.replace("TOP", top)
+    return member, data
+
+
+#: Archives with members that must never be written: (kind, name, link target) per member.
+UNSAFE = {
+    "traversal": [("file", "TOP/../../evil.txt")],
+    "absolute-path": [("file", "/tmp/evil.txt")],
+    "outside-folder": [("file", "Other/evil.txt")],
+    "absolute-link": [("sym", "TOP/link", "/etc/passwd")],
+    # A chain of links that each stay inside the tree but together point outside it, then a
+    # file written through the chain (the tarfile "data" filter bypass of 2025).
+    "link-chain": [("sym", "TOP/data/a", "."), ("sym", "TOP/data/a/b", "../.."),
+                   ("sym", "TOP/data/out", "a/b/../.."), ("file", "TOP/data/out/evil.txt")],
+    "hard-link": [("hard", "TOP/data/hard", "TOP/LICENSE")],
+    "fifo": [("fifo", "TOP/data/pipe")],
+    "device": [("chr", "TOP/data/dev")],
+}
+
+
 class TestUnpack:
     def test_fetch_unpacks_into_cache(self, fake, isolated_home):
         folder = store.fetch("fake-1", fake.archive)
@@ -152,26 +250,63 @@ class TestUnpack:
         assert store.fetch("fake-1", fake.archive, force=True) == folder
         assert not (folder / "data" / "stray.txt").exists()
 
-    @pytest.mark.parametrize("kind", ["traversal", "absolute-link", "outside-folder"])
+    @pytest.mark.parametrize("kind", sorted(UNSAFE))
     def test_unsafe_archive_rejected(self, kind, fake_tools, tmp_path, monkeypatch, isolated_home):
         folder, _ = fake_tools.write_folder(tmp_path / "unpacked")
-        member = tarfile.TarInfo(
-            {"traversal": f"{folder.name}/../../evil.txt", "absolute-link": f"{folder.name}/link",
-             "outside-folder": "Other/evil.txt"}[kind]
-        )
-        data: bytes | None = b"evil"
-        member.size = 4
-        if kind == "absolute-link":
-            member.type, member.linkname, member.size = tarfile.SYMTYPE, "/etc/passwd", 0
-            data = None
+        extra = [unsafe_member(folder.name, *spec) for spec in UNSAFE[kind]]
         archive = tmp_path / "fake-motion-1.tar.gz"
-        info = fake_tools.info(fake_tools.pack(folder, archive, [(member, data)]))
+        info = fake_tools.info(fake_tools.pack(folder, archive, extra))
         monkeypatch.setitem(registry.REGISTRY, info.name, info)
-        with pytest.raises(DataError, match=r"unpack|outside"):
+        first = extra[0][0].name
+        with pytest.raises(DataError, match=re.escape(repr(first))) as exc:
             store.fetch("fake-1", archive)
+        assert "fetch it again" in str(exc.value)
         assert not (isolated_home / "datasets" / info.folder).exists()
         assert not any(p.name == "evil.txt" for p in tmp_path.rglob("*"))
-        assert not [p for p in (isolated_home / "datasets").iterdir()]
+        assert list((isolated_home / "datasets").iterdir()) == []
+
+    def test_unpacks_the_bytes_it_checked(self, fake, fake_tools, tmp_path, monkeypatch,
+                                          isolated_home):
+        """An archive swapped on disk between the check and the unpack changes nothing."""
+        evil_folder, _ = fake_tools.write_folder(tmp_path / "evil")
+        (evil_folder / "data" / "evil.txt").write_text("evil")
+        evil = tmp_path / "evil.tar.gz"
+        fake_tools.pack(evil_folder, evil)
+        shared = tmp_path / "shared"
+        shared.mkdir()
+        archive = shared / fake.info.archive
+        archive.write_bytes(fake.archive.read_bytes())
+        check = store._check_open
+
+        def check_then_swap(*args, **kwargs):
+            check(*args, **kwargs)
+            os.replace(evil, archive)
+
+        monkeypatch.setattr(store, "_check_open", check_then_swap)
+        folder = store.extract_archive("fake-1", archive)
+        assert not (folder / "data" / "evil.txt").exists()
+        assert len(list((folder / "data").glob("*.bvh"))) == 18
+
+    def test_stale_folder_replaced_finished_copy_kept(self, fake, monkeypatch, isolated_home):
+        target = isolated_home / "datasets" / fake.info.folder
+        (target / "data").mkdir(parents=True)
+        (target / "data" / "half-written.bvh").write_text("x")
+        folder = store.extract_archive("fake-1", fake.archive)
+        assert not (folder / "data" / "half-written.bvh").exists()
+        assert store.is_cached("fake-1")
+
+        def no_unpack(*args):
+            raise AssertionError("a finished copy must be used as it is")
+
+        monkeypatch.setattr(store, "_unpack_into", no_unpack)
+        assert store.extract_archive("fake-1", fake.archive) == folder
+        assert store.dataset_dir("fake-1") == folder
+
+    def test_too_large_local_archive_refused(self, fake, monkeypatch, isolated_home):
+        monkeypatch.setattr(store, "MAX_DOWNLOAD_BYTES", 100)
+        with pytest.raises(DataError, match=r"over the limit of 100 bytes"):
+            store.fetch_archive("fake-1", fake.archive)
+        assert list((isolated_home / "archives").iterdir()) == []
 
 
 class TestLocate:

@@ -5,11 +5,12 @@ from __future__ import annotations
 
 import csv
 import re
+from pathlib import Path
 
 import pytest
 import torch
 
-from emotive.errors import ConfigError
+from emotive.errors import ConfigError, OutputError
 from emotive.models.training import (
     EpochOutcome,
     TrainingLog,
@@ -19,6 +20,7 @@ from emotive.models.training import (
     resumed_log,
     rng_state,
     run_epochs,
+    save_checkpoint,
     seed_everything,
 )
 
@@ -63,18 +65,31 @@ def test_the_loop_logs_every_epoch_and_keeps_the_best(tmp_path):
     assert tuple(rows[0]) == COLUMNS and [r["loss"] for r in rows] == ["3.0", "1.0", "2.0"]
 
 
-def test_ctrl_c_saves_the_weights_with_the_interrupted_epochs_start(tmp_path):
+def test_ctrl_c_keeps_last_at_the_last_finished_epoch(tmp_path, capsys):
     log = TrainingLog()
     with pytest.raises(KeyboardInterrupt):
         loop(tmp_path, log, [3.0, 1.0, 2.0], interrupt_at=(1, 2))
     last = saved(tmp_path / "last.pt")
-    # Epoch 2 of 3 was interrupted after two updates: 5 in all, random state of its start (3).
-    assert (last["epoch"], last["updates"], last["rng"]) == (1, 5, 3)
+    # Epoch 2 of 3 was interrupted after two updates: last.pt stays at the end of epoch 1
+    # (3 updates, random state 3), and the log and its file say the same.
+    assert (last["epoch"], last["updates"], last["rng"]) == (1, 3, 3)
     assert [r["epoch"] for r in last["history"]] == [1]
+    assert [r["epoch"] for r in log.history] == [1] and log.best_val == 3.0
+    with open(tmp_path / "log.csv", newline="") as f:
+        assert [r["epoch"] for r in csv.DictReader(f)] == ["1"]
+    assert "interrupted in epoch 2" in capsys.readouterr().err
     resumed = resumed_log(last)
     assert (resumed.start_epoch, resumed.best_val, len(resumed.history)) == (1, 3.0, 1)
     loop(tmp_path, resumed, [3.0, 1.0, 2.0])
     assert [r["epoch"] for r in resumed.history] == [1, 2, 3]
+
+
+def test_ctrl_c_in_the_first_epoch_saves_nothing(tmp_path, capsys):
+    log = TrainingLog()
+    with pytest.raises(KeyboardInterrupt):
+        loop(tmp_path, log, [3.0, 1.0], interrupt_at=(0, 1))
+    assert list(tmp_path.iterdir()) == [] and log.history == []
+    assert "nothing saved; run again" in capsys.readouterr().err
 
 
 def test_ctrl_c_before_any_update_leaves_last_as_it_was(tmp_path):
@@ -123,3 +138,46 @@ def test_random_state_round_trips_numpy_and_torch():
         restore_rng_state(rng, state, generator)
         again = rng.random(3), torch.rand(3, generator=generator)
         assert (first[0] == again[0]).all() and torch.equal(first[1], again[1])
+
+
+@pytest.mark.parametrize("failure", [
+    OSError(28, "No space left on device"),
+    RuntimeError("[enforce fail at inline_container.cc:672] . unexpected pos 64 vs 0\nmore"),
+])
+def test_a_failed_save_is_an_output_error_keeping_the_previous_file(tmp_path, monkeypatch,
+                                                                    failure):
+    path = tmp_path / "last.pt"
+    save_checkpoint(path, {"epoch": 1})
+
+    def full_disk(obj, f):
+        Path(f).write_bytes(b"half")
+        raise failure
+
+    monkeypatch.setattr(torch, "save", full_disk)
+    with pytest.raises(OutputError) as info:
+        save_checkpoint(path, {"epoch": 2})
+    message = str(info.value)
+    assert "\n" not in message and "enforce" not in message
+    assert "cannot write" in message and str(path) in message
+    assert "free" in message
+    monkeypatch.undo()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["last.pt"]
+    assert saved(path) == {"epoch": 1}
+
+
+def test_a_failed_save_in_training_says_which_epoch_last_keeps(tmp_path, monkeypatch):
+    loop(tmp_path, TrainingLog(), [3.0], epochs=1)
+    real_save = torch.save
+
+    def fail_on_epoch_2(obj, f):
+        if obj["epoch"] == 2:
+            raise RuntimeError("[enforce fail at inline_container.cc:672] . unexpected pos")
+        real_save(obj, f)
+
+    monkeypatch.setattr(torch, "save", fail_on_epoch_2)
+    resumed = resumed_log(saved(tmp_path / "last.pt"))
+    with pytest.raises(OutputError, match=r"stopped after epoch 2, .*last\.pt keeps epoch 1$"):
+        loop(tmp_path, resumed, [3.0, 2.0, 1.0])
+    monkeypatch.undo()
+    assert saved(tmp_path / "last.pt")["epoch"] == 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["best.pt", "last.pt", "log.csv"]

@@ -2,9 +2,15 @@
 
 from __future__ import annotations
 
+import errno
+
+import errno
+
 import numpy as np
 import pytest
 
+from emotive.errors import OutputError
+from emotive.errors import OutputError
 from emotive.features.affective import AFFECTIVE_FEATURE_KINDS, AFFECTIVE_FEATURE_NAMES
 from emotive.features.movement import MOVEMENT_FEATURE_NAMES
 from emotive.render.plots import _runs, plot_features
@@ -51,11 +57,11 @@ def test_failed_save_leaves_nothing(tmp_path, monkeypatch):
     def broken(self, fname, **kwargs):
         with open(fname, "wb") as fh:
             fh.write(b"half an image")
-        raise OSError("disk full")
+        raise OSError(errno.ENOSPC, "No space left on device")
 
     monkeypatch.setattr(Figure, "savefig", broken)
     (tmp_path / "features.png").write_bytes(b"old")
-    with pytest.raises(OSError, match="disk full"):
+    with pytest.raises(OutputError, match=r"features\.png.*disk is full"):
         _plot(tmp_path / "features.png")
     assert [p.name for p in tmp_path.iterdir()] == ["features.png"]
     assert (tmp_path / "features.png").read_bytes() == b"old"

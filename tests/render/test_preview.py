@@ -8,11 +8,14 @@ import imageio_ffmpeg
 import numpy as np
 import pytest
 
+from disk_faults import fill_disk
 from emotive.cli import main
+from emotive.errors import OutputError
 from emotive.io.bvh import write_bvh
 from emotive.paths import figure8
-from emotive.render import preview as preview_mod
+from emotive.render import video as video_mod
 from emotive.render.preview import PreviewError, bones, render_preview
+from emotive.render.video import VideoEncoder
 
 BLUE = np.array([0x1F, 0x5F, 0xBF])
 RED = np.array([0xC8, 0x35, 0x2B])
@@ -105,13 +108,41 @@ def test_bad_requests(tmp_path, walker, name, kwargs, words):
 
 
 def test_encoder_failure_leaves_no_file(tmp_path, walker, monkeypatch):
-    def broken(*args, **kwargs):
-        raise OSError("ffmpeg crashed")
-
-    monkeypatch.setattr(preview_mod, "_ffmpeg_options", broken)
-    with pytest.raises(OSError, match="ffmpeg crashed"):
+    monkeypatch.setattr(video_mod, "_command", lambda *a: [sys.executable, "-c",
+                                                             "import sys; sys.exit(3)"])
+    with pytest.raises(OutputError, match=r"cannot write .*w\.mp4.*ffmpeg"):
         render_preview(walker, tmp_path / "w.mp4")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_an_encoder_that_exits_0_with_a_truncated_gif_is_caught(tmp_path, walker, monkeypatch):
+    script = "import sys; sys.stdin.buffer.read(); open(sys.argv[1], 'wb').write(b'GIF89a')"
+    monkeypatch.setattr(video_mod, "_command",
+                        lambda path, *a: [sys.executable, "-c", script, str(path)])
+    with pytest.raises(OutputError, match="incomplete"):
+        render_preview(walker, tmp_path / "w.gif", size=(64, 64))
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("suffix", [".gif", ".mp4"])
+def test_a_full_disk_is_one_error_and_leaves_no_file(tmp_path, walker, monkeypatch, suffix):
+    fill_disk(monkeypatch)
+    with pytest.raises(OutputError, match="disk is full") as exc:
+        render_preview(walker, tmp_path / f"w{suffix}", size=(64, 64))
+    assert "\n" not in str(exc.value) and f"w{suffix}" in str(exc.value)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_folder_as_the_output_is_refused(tmp_path, walker):
+    (tmp_path / "w.gif").mkdir()
+    with pytest.raises(PreviewError, match="that is a folder"):
+        render_preview(walker, tmp_path / "w.gif")
+
+
+def test_frames_of_the_wrong_size_are_refused(tmp_path):
+    with pytest.raises(ValueError, match="expected"), \
+            VideoEncoder(tmp_path / "v.gif", (8, 8), 10.0, gif=True) as video:
+        video.send(b"123")
 
 
 def test_cli(tmp_path, walker, monkeypatch, capsys):
@@ -130,3 +161,12 @@ def test_cli(tmp_path, walker, monkeypatch, capsys):
     with pytest.raises(SystemExit) as exc:
         main()
     assert exc.value.code == 2 and "unknown path 'nowhere'" in capsys.readouterr().err
+    fill_disk(monkeypatch)
+    full = tmp_path / "full.gif"
+    monkeypatch.setattr(sys, "argv", ["emotive", "preview", str(clip), "--out", str(full),
+                                      "--width", "64", "--height", "64"])
+    with pytest.raises(SystemExit) as exc:
+        main()
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and err.startswith("error: ") and err.count("\n") == 1, err
+    assert "disk is full" in err and "wrote" not in err and not full.exists()

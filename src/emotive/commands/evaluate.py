@@ -85,12 +85,17 @@ def evaluate(
     from emotive.eval.evaluate import resolve_subject, run_suites
     from emotive.eval.report import write_report
     from emotive.eval.sources import standard_requests
+    from emotive.io.outputs import check_output_folder
 
+    if out is not None:
+        check_output_folder(out, "--out")
     clf = EmotionClassifier.load(classifier) if classifier else None
     subject = resolve_subject(model, (clf or load_default_classifier()).labels, weights,
                               **parse_options(option))
     clf = clf or subject.classifier or load_default_classifier()
-    out = out or Path("reports") / subject.name
+    if out is None:
+        out = Path("reports") / subject.name
+        check_output_folder(out, "--out")
     results, info = run_suites(subject, suite, clf, progress=True,
                                requests=standard_requests(clf.labels, seconds))
     folder = write_report(out, subject.name, results, info)

@@ -106,9 +106,11 @@ def run_generate(model: str, out: Path, emotion: str | Path | None, seconds: flo
 
     request = GenerationRequest(out.stem, schedule=schedule, seconds=seconds, path=ground,
                                 seed=seed, primer=primer_motion)
-    generated = generator.generate(request, progress=True)
-    written = write_generated(generated, out, npz=npz, preview=preview, progress=True)
     console = Console(stderr=True)
+    # Progress bars only on a terminal: elsewhere they leave blank lines around the messages.
+    bars = console.is_terminal
+    generated = generator.generate(request, progress=bars)
+    written = write_generated(generated, out, npz=npz, preview=preview, progress=bars)
     if generated.summary:
         console.print(generated.summary, highlight=False)
     for item in written:

@@ -17,6 +17,7 @@ from rich.tree import Tree
 from emotive.commands.options import RolesOpt, out_option
 from emotive.errors import EmotiveError
 from emotive.io.atomic import atomic_output
+from emotive.io.outputs import check_output
 
 #: Image formats ``--plot`` accepts.
 PLOT_SUFFIXES = (".png", ".pdf", ".svg")
@@ -88,15 +89,6 @@ def info(
         console.print(f"[red]roles not resolved:[/red] {problem}")
 
 
-def _check_output(path: Path, what: str) -> None:
-    if not path.parent.is_dir():
-        raise EmotiveError(
-            f"{what} {path}: the folder {path.parent} does not exist; create it first"
-        )
-    if path.is_dir():
-        raise EmotiveError(f"{what} {path} is a folder: give a file name")
-
-
 def features(
     file: FileArg,
     out: Annotated[Path, out_option("Output CSV, one row per frame.")],
@@ -124,13 +116,13 @@ def features(
     from emotive.features.movement import MOVEMENT_FEATURE_NAMES, movement_features
     from emotive.io.bvh import read_bvh
 
-    _check_output(out, "--out")
+    check_output(out, None, "--out")
     if plot is not None:
-        _check_output(plot, "--plot")
         if plot.suffix.lower() not in PLOT_SUFFIXES:
             raise EmotiveError(
                 f"--plot {plot}: unknown image type {plot.suffix!r}; use one of {PLOT_SUFFIXES}"
             )
+        check_output(plot, PLOT_SUFFIXES, "--plot")
     motion = read_bvh(file)
     if motion.num_frames == 0:
         raise EmotiveError(f"{file} has no frames: nothing to compute")

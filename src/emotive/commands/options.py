@@ -110,10 +110,14 @@ def run_training(load: Callable[[Path], tuple[Any, Any]], train: Callable[..., A
         What ``train`` returns.
 
     Raises:
+        OutputError: ``out`` is a file or its folder cannot be written (before any work).
         typer.Exit: code 130 after Ctrl-C (``train`` has saved ``last.pt``).
     """
     from dataclasses import replace
 
+    from emotive.io.outputs import check_output_folder
+
+    check_output_folder(out, "--out")
     model_config, settings = load(config)
     if epochs is not None:
         settings = replace(settings, epochs=epochs)

@@ -76,6 +76,7 @@ def reconstruct(
     from emotive.ik import reconstruct as ik_reconstruct
     from emotive.io.bvh import read_bvh, write_bvh
     from emotive.io.outputs import PREVIEW_SUFFIXES, check_output
+    from emotive.render.outputs import write_all
 
     check_output(out, (".bvh",), "--out")
     if preview is not None:
@@ -96,10 +97,14 @@ def reconstruct(
         raise type(exc)(f"{input}: {exc}") from None
     # The rebuilt clip keeps the input's metadata, so it is written in the input's length unit.
     rebuilt = result.motion
-    write_bvh(rebuilt, out)
-    typer.echo(f"wrote {out}: {summary(result, motion.fps)}")
+    writers = [(out, lambda: write_bvh(rebuilt, out))]
     if preview is not None:
         from emotive.render.preview import render_preview
 
-        render_preview(rebuilt, preview, title=f"{input.name} rebuilt", progress=True)
+        writers.append((preview, lambda: render_preview(rebuilt, preview,
+                                                        title=f"{input.name} rebuilt",
+                                                        progress=True)))
+    write_all(writers)
+    typer.echo(f"wrote {out}: {summary(result, motion.fps)}")
+    if preview is not None:
         console.print(f"wrote {preview}")

@@ -36,9 +36,11 @@ def preview(
     from rich.console import Console
 
     from emotive.io.bvh import read_bvh
+    from emotive.io.outputs import PREVIEW_SUFFIXES, check_output
     from emotive.paths import load_path
     from emotive.render.preview import render_preview
 
+    check_output(out, PREVIEW_SUFFIXES, "--out")
     ground = load_path(path).points if path is not None else None
     motion = read_bvh(file)
     captions = [caption] * motion.num_frames if caption else None

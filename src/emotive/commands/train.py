@@ -1,8 +1,9 @@
 """``emotive train gait | quaternet | fcrbm | classifier``: train a model on the real data.
 
 Every model is trained from a TOML config (``--config``) into a folder (``--out``) holding
-``last.pt``, ``best.pt`` and ``log.csv``; Ctrl-C saves and ``--resume`` continues. The
-classifier has its own options (folds, architecture comparison).
+``last.pt``, ``best.pt`` and ``log.csv``; Ctrl-C keeps the last finished epoch and
+``--resume`` continues exactly. The classifier has its own options (folds, architecture
+comparison).
 
 Heavy modules are imported inside the commands so that ``emotive --help`` stays fast.
 """
@@ -47,7 +48,7 @@ def train_gait_command(
     seed: SeedOpt = 0,
     epochs: EpochsOpt = None,
 ) -> None:
-    """Train the emotive gait network (Ctrl-C saves; --resume continues)."""
+    """Train the emotive gait network (Ctrl-C keeps the last epoch; --resume continues)."""
     from emotive.models.gait.training import load_gait_settings, train_gait
 
     result = run_training(load_gait_settings, train_gait, config, out, resume, seed, epochs)
@@ -62,7 +63,7 @@ def train_quaternet_command(
     seed: SeedOpt = 0,
     epochs: EpochsOpt = None,
 ) -> None:
-    """Train the QuaterNet baseline on the gait data (Ctrl-C saves; --resume continues)."""
+    """Train the QuaterNet baseline on the gait data (Ctrl-C keeps the last epoch; --resume)."""
     from emotive.models.gait.quaternet.training import load_quaternet_settings, train_quaternet
 
     result = run_training(load_quaternet_settings, train_quaternet, config, out, resume, seed,
@@ -81,7 +82,7 @@ def train_fcrbm_command(
     """Train the FCRBM by contrastive divergence.
 
     Train the FCRBM by contrastive divergence on walks of every style with a valence/arousal
-    entry (Ctrl-C saves; --resume continues).
+    entry (Ctrl-C keeps the last finished epoch; --resume continues exactly).
     """
     from emotive.models.fcrbm.training import load_fcrbm_settings, train_fcrbm
 
@@ -124,10 +125,15 @@ def train_classifier_command(
         train_classifier,
     )
     from emotive.eval.model_card import classifier_card
-    from emotive.io.atomic import atomic_output
+    from emotive.io.atomic import atomic_output, output_error
+    from emotive.io.outputs import check_output_folder
 
     console = Console(stderr=True)
-    out.mkdir(parents=True, exist_ok=True)
+    check_output_folder(out, "--out")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise output_error(out, exc) from exc
     config = replace(ClassifierConfig(), seed=seed, epochs=epochs)
     if architecture is not None:
         config = replace(config, architecture=architecture)

@@ -103,6 +103,7 @@ def transfer(
     from emotive.io.outputs import PREVIEW_SUFFIXES, check_output
     from emotive.models.mar.config import TransferError
     from emotive.models.mar.transfer import parse_style, transfer_motion
+    from emotive.render.outputs import write_all
 
     console = Console(stderr=True)
     if input is None:
@@ -140,7 +141,14 @@ def transfer(
         message = str(exc)
         raise type(exc)(message if str(input) in message else f"{input}: {message}") from None
     seconds = time.perf_counter() - start
-    write_bvh(result.motion, out)
+    writers = [(out, lambda: write_bvh(result.motion, out))]
+    if preview is not None:
+        from emotive.render.preview import render_preview
+
+        writers.append((preview, lambda: render_preview(result.motion, preview,
+                                                        title=f"{input.name} -> {spec}",
+                                                        progress=True)))
+    write_all(writers)
     n_in, n_out = motion.num_frames, result.motion.num_frames
     typer.echo(
         f"wrote {out}: {n_in} frames -> {n_out} frames ({result.motion.duration:.2f} s) in "
@@ -148,7 +156,4 @@ def transfer(
         f"feet {'pinned' if result.pinned else 'not pinned (no contacts)'}"
     )
     if preview is not None:
-        from emotive.render.preview import render_preview
-
-        render_preview(result.motion, preview, title=f"{input.name} -> {spec}", progress=True)
         console.print(f"wrote {preview}")

@@ -11,46 +11,50 @@ Where data comes from, in order:
 3. ``emotive data fetch NAME [--source PATH_OR_URL]``: a copy from a local file or folder, or a
    resumable HTTP(S) download (``$EMOTIVE_DATA_URL`` is a base URL holding the archives).
 
-Every archive is checked against the registry's sha256 before it is unpacked; an archive that
-fails the check is deleted. Unpacking refuses members outside the data set's folder and uses
-:mod:`tarfile`'s ``data`` filter (no absolute paths, links out of the tree or device files), into
-a temporary folder renamed into place, so a half-unpacked data set is never visible.
+Every archive is opened once, checked against the registry's sha256 through that open file and
+unpacked from the same file, so the bytes unpacked are the bytes checked; a fetched archive that
+fails the check is deleted. Unpacking writes only folders and regular files inside the data
+set's folder (see :mod:`emotive.data.archive`) into a temporary folder that is renamed into
+place, so a half-unpacked data set is never visible.
+
+Any number of processes may share one cache: unpacking and fetching hold a lock beside their
+target (:mod:`emotive.data.lock`), a process that finds the data set complete once it holds the
+lock uses that copy, and a finished copy is never replaced except by ``fetch --force``. A full
+disk, a read-only cache or an oversized download is a :class:`~emotive.errors.DataError` that
+leaves no partial folder or temporary file behind.
 """
 
 from __future__ import annotations
 
 import hashlib
-import http.client
 import json
 import logging
 import os
 import shutil
 import tarfile
 import tempfile
-import urllib.error
-import urllib.request
 from dataclasses import dataclass
 from pathlib import Path
-
-from rich.progress import (
-    BarColumn,
-    DownloadColumn,
-    Progress,
-    TimeRemainingColumn,
-    TransferSpeedColumn,
-)
+from typing import BinaryIO
 
 import emotive
+from emotive.data.archive import CORRUPT_STREAM_ERRORS, check_members, disk_error, unpack
+from emotive.data.download import MAX_DOWNLOAD_BYTES, download
+from emotive.data.lock import file_lock
 from emotive.data.registry import DatasetInfo, get_dataset
 from emotive.errors import ChecksumError, DataError
-from emotive.io.atomic import atomic_output
 
 log = logging.getLogger(__name__)
 
 #: File written into an unpacked data set once it is complete.
 MARKER = ".emotive-dataset.json"
 _CHUNK = 1 << 20
-_TIMEOUT_S = 60.0
+
+__all__ = [
+    "MARKER", "DatasetState", "archive_cache_path", "cache_dir", "dataset_dir", "dataset_state",
+    "download", "emotive_home", "extract_archive", "fetch", "fetch_archive",
+    "find_shared_archive", "is_cached", "sha256_file", "shared_data_dirs", "verify_archive",
+]
 
 
 def emotive_home() -> Path:
@@ -141,15 +145,17 @@ def dataset_dir(name: str | DatasetInfo) -> Path:
     """The unpacked data set folder (holding ``cfg/`` and ``data/*.bvh``).
 
     On first use the archive is taken from a shared data folder, checked and unpacked into the
-    cache; later calls return the cached folder at once.
+    cache; later calls return the cached folder at once. Processes that ask at the same moment
+    wait for the first one's copy instead of unpacking their own.
 
     Args:
         name: registry name, e.g. ``"bandai-namco-1"``.
 
     Raises:
         DataError: the data set is neither cached nor in a shared data folder; the message says
-            to run ``emotive data fetch NAME``.
-        ChecksumError: the shared archive is corrupt.
+            to run ``emotive data fetch NAME``; or the cache cannot be written (full disk,
+            read-only ``EMOTIVE_HOME``).
+        ChecksumError: the shared archive is corrupt (it is left in place).
     """
     info = get_dataset(name)
     if is_cached(info):
@@ -162,18 +168,56 @@ def dataset_dir(name: str | DatasetInfo) -> Path:
             f"folder holds {info.archive} (searched: {searched}); run `emotive data fetch "
             f"{info.name}`, or set EMOTIVE_DATA to a folder holding {info.archive}"
         )
-    log.info("unpacking %s from %s", info.name, shared)
-    verify_archive(info, shared, remove=False)
     return extract_archive(info, shared)
+
+
+def _hash_open(fh: BinaryIO) -> str:
+    """Hex sha256 of an open binary file from its start; leaves it at its start again."""
+    digest = hashlib.sha256()
+    fh.seek(0)
+    while block := fh.read(_CHUNK):
+        digest.update(block)
+    fh.seek(0)
+    return digest.hexdigest()
 
 
 def sha256_file(path: Path) -> str:
     """Hex sha256 of a file."""
-    digest = hashlib.sha256()
     with open(path, "rb") as fh:
-        while block := fh.read(_CHUNK):
-            digest.update(block)
-    return digest.hexdigest()
+        return _hash_open(fh)
+
+
+def _checksum_error(info: DatasetInfo, actual: str, source: str, removed: bool) -> ChecksumError:
+    note = "; the corrupt copy was removed" if removed else ""
+    return ChecksumError(
+        f"archive {source} has sha256 {actual} but {info.name} needs {info.sha256}: the file "
+        f"is corrupt or not {info.archive}{note}; fetch it again with "
+        f"`emotive data fetch {info.name} --source PATH_OR_URL`"
+    )
+
+
+def _open_archive(path: Path) -> BinaryIO:
+    """Open an archive for reading; a missing or unreadable file is a :class:`DataError`."""
+    try:
+        return open(path, "rb")
+    except OSError as exc:
+        raise DataError(
+            f"cannot read archive {path} ({exc.strerror or exc}); fetch it again"
+        ) from None
+
+
+def _check_open(
+    info: DatasetInfo, fh: BinaryIO, path: Path, *, remove: bool, source: str | None
+) -> None:
+    """Check the sha256 of an open archive; see :func:`verify_archive`."""
+    try:
+        actual = _hash_open(fh)
+    except OSError as exc:
+        raise DataError(f"cannot read archive {path} ({exc}); fetch it again") from None
+    if actual != info.sha256:
+        if remove:
+            Path(path).unlink(missing_ok=True)
+        raise _checksum_error(info, actual, source or str(path), remove)
 
 
 def verify_archive(
@@ -189,71 +233,159 @@ def verify_archive(
 
     Raises:
         ChecksumError: the sha256 differs.
+        DataError: the file cannot be read.
     """
     info = get_dataset(name)
-    actual = sha256_file(path)
-    if actual != info.sha256:
-        if remove:
-            Path(path).unlink(missing_ok=True)
-        removed = "; the corrupt copy was removed" if remove else ""
-        raise ChecksumError(
-            f"archive {source or path} has sha256 {actual} but {info.name} needs {info.sha256}: "
-            f"the file is corrupt or not {info.archive}{removed}; fetch it again with "
-            f"`emotive data fetch {info.name} --source PATH_OR_URL`"
-        )
+    with _open_archive(path) as fh:
+        _check_open(info, fh, path, remove=remove, source=source)
 
 
-def extract_archive(name: str | DatasetInfo, archive: Path) -> Path:
-    """Unpack a checked archive into the cache and return the data set folder.
+def extract_archive(
+    name: str | DatasetInfo,
+    archive: Path,
+    *,
+    remove: bool = False,
+    source: str | None = None,
+    force: bool = False,
+) -> Path:
+    """Check and unpack an archive into the cache and return the data set folder.
 
-    Members must lie inside the data set's folder; :mod:`tarfile`'s ``data`` filter rejects
-    absolute paths, ``..`` and links that leave the tree. The archive is unpacked into a
-    temporary folder that is renamed into place when complete.
+    The archive is opened once: its sha256 is computed from the open file and the same file is
+    unpacked, so a file swapped on disk in between cannot slip through. Only folders and regular
+    files inside the data set's folder are written (see :func:`emotive.data.archive.unpack`),
+    into a temporary folder renamed into place when complete. The whole step holds the data
+    set's lock; a process that finds the data set complete once it holds the lock returns it.
+
+    Args:
+        name: registry name or entry.
+        archive: the archive file.
+        remove: delete the archive when it fails the check (only for the cache's own copy).
+        source: where the archive came from, named in errors.
+        force: unpack again even when the data set is complete in the cache.
+
+    Returns:
+        ``$EMOTIVE_HOME/datasets/<folder>``.
 
     Raises:
-        DataError: the archive is not a readable tar file or holds unsafe members.
+        ChecksumError: the archive's sha256 differs from the registry's.
+        DataError: the archive cannot be read, is not a tar file or holds links, devices or
+            members outside the data set's folder; or the cache cannot be written (full disk,
+            read-only). Nothing is left behind.
     """
     info = get_dataset(name)
     root = emotive_home() / "datasets"
-    root.mkdir(parents=True, exist_ok=True)
+    target = root / info.folder
+    doing = f"unpacking {info.name}"
+    try:
+        root.mkdir(parents=True, exist_ok=True)
+        with file_lock(root / f".{info.folder}.lock", what=doing):
+            if is_cached(info) and not force:
+                return target
+            with _open_archive(archive) as fh:
+                _check_open(info, fh, archive, remove=remove, source=source)
+                log.info("unpacking %s from %s", info.name, source or archive)
+                _unpack_into(info, fh, source or str(archive), root)
+    except OSError as exc:
+        raise disk_error(exc, root, doing) from None
+    return target
+
+
+def _unpack_into(info: DatasetInfo, fh: BinaryIO, label: str, root: Path) -> None:
+    """Unpack the checked open archive ``fh`` to ``root/<folder>``; the caller holds the lock."""
     target = root / info.folder
     tmp = Path(tempfile.mkdtemp(prefix=f".{info.folder}.", dir=root))
     try:
-        with tarfile.open(archive, "r:*") as tar:
-            members = tar.getmembers()
-            outside = [
-                m.name for m in members
-                if m.name.rstrip("/") != info.folder and not m.name.startswith(info.folder + "/")
-            ]
-            if outside:
-                raise DataError(
-                    f"archive {archive} holds {outside[0]!r}, outside {info.folder}/: it is not "
-                    f"the {info.name} archive; fetch it again"
-                )
-            tar.extractall(tmp, members=members, filter="data")
+        try:
+            with tarfile.open(fileobj=fh, mode="r:*") as tar:
+                members = tar.getmembers()
+                fix = f"it is not the {info.name} archive; fetch it again"
+                check_members(members, info.folder, label, fix)
+                unpack(tar, members, tmp)
+        except CORRUPT_STREAM_ERRORS as exc:
+            raise DataError(f"cannot unpack {label} ({exc}); fetch the archive again") from None
         unpacked = tmp / info.folder
         if not (unpacked / "data").is_dir():
-            raise DataError(f"archive {archive} has no {info.folder}/data folder; fetch it again")
+            raise DataError(f"archive {label} has no {info.folder}/data folder; fetch it again")
         (unpacked / MARKER).write_text(
             json.dumps({"name": info.name, "archive": info.archive, "sha256": info.sha256})
         )
-        if target.exists():
-            shutil.rmtree(target)
-        try:
-            os.replace(unpacked, target)
-        except OSError:
-            # Another process unpacked the same archive at the same moment: keep its copy.
-            if not is_cached(info):
-                raise
-    except (tarfile.TarError, EOFError, OSError) as exc:
-        raise DataError(f"cannot unpack {archive} ({exc}); fetch the archive again") from None
+        if os.path.lexists(target):
+            # Under the lock, an existing folder is no complete copy of this archive (or the
+            # user asked for --force): nobody else is using it as one.
+            os.rename(target, tmp / ".replaced")
+        os.rename(unpacked, target)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
-    return target
 
 
 def _is_url(source: str) -> bool:
     return source.startswith(("http://", "https://"))
+
+
+def _default_source(info: DatasetInfo) -> str | Path:
+    """A shared data folder's archive, else ``$EMOTIVE_DATA_URL/<archive>``."""
+    shared = find_shared_archive(info)
+    base = os.environ.get("EMOTIVE_DATA_URL")
+    if shared is not None:
+        return shared
+    if base:
+        return f"{base.rstrip('/')}/{info.archive}"
+    raise DataError(
+        f"no source for {info.name}: the upstream repository {info.upstream} does not host "
+        f"{info.archive}; pass --source with a URL, the archive file or the folder holding it, "
+        f"or set EMOTIVE_DATA (a folder of archives) or EMOTIVE_DATA_URL"
+    )
+
+
+def _local_source(info: DatasetInfo, text: str) -> Path:
+    """The archive file named by a local ``--source`` (the file or its folder)."""
+    path = Path(text).expanduser()
+    if path.is_dir():
+        path = path / info.archive
+    if not path.is_file():
+        raise DataError(f"{path} does not exist: pass the {info.archive} file or its folder")
+    return path
+
+
+class _HashingReader:
+    """A binary file whose reads also update a sha256."""
+
+    def __init__(self, fh: BinaryIO) -> None:
+        self.fh = fh
+        self.digest = hashlib.sha256()
+
+    def read(self, size: int = -1) -> bytes:
+        block = self.fh.read(size)
+        self.digest.update(block)
+        return block
+
+
+def _copy_checked(info: DatasetInfo, path: Path, dest: Path) -> None:
+    """Copy a local archive to ``dest``, hashing the bytes as they are written.
+
+    The copy goes to a temporary file beside ``dest``, renamed into place once its sha256 is
+    right and deleted on any failure; an :class:`OSError` propagates for the caller to name the
+    cache folder.
+    """
+    with _open_archive(path) as src:
+        size = os.fstat(src.fileno()).st_size
+        if size > MAX_DOWNLOAD_BYTES:
+            raise DataError(
+                f"{path} is {size} bytes, over the limit of {MAX_DOWNLOAD_BYTES} bytes for a "
+                f"data set archive: it is not {info.archive}; pass the right file"
+            )
+        reader = _HashingReader(src)
+        fd, name = tempfile.mkstemp(prefix=f".{dest.name}.", suffix=".tmp", dir=dest.parent)
+        try:
+            with open(fd, "wb") as out:
+                shutil.copyfileobj(reader, out, _CHUNK)
+            actual = reader.digest.hexdigest()
+            if actual != info.sha256:
+                raise _checksum_error(info, actual, str(path), removed=True)
+            os.replace(name, dest)
+        except BaseException:
+            Path(name).unlink(missing_ok=True)
+            raise
 
 
 def fetch_archive(
@@ -271,119 +403,26 @@ def fetch_archive(
         The archive in the cache.
 
     Raises:
-        DataError: the source does not exist, the download fails or is interrupted (run again
-            to resume), or no source is known.
+        DataError: the source does not exist or is too large, the download fails or is
+            interrupted (run again to resume), no source is known, or the cache cannot be
+            written (full disk, read-only; no partial file is left).
         ChecksumError: the copy is corrupt; it is removed.
     """
     info = get_dataset(name)
     dest = archive_cache_path(info)
-    dest.parent.mkdir(parents=True, exist_ok=True)
-    if source is None:
-        shared = find_shared_archive(info)
-        base = os.environ.get("EMOTIVE_DATA_URL")
-        if shared is not None:
-            source = shared
-        elif base:
-            source = f"{base.rstrip('/')}/{info.archive}"
-        else:
-            raise DataError(
-                f"no source for {info.name}: the upstream repository {info.upstream} does not "
-                f"host {info.archive}; pass --source with a URL, the archive file or the folder "
-                f"holding it, or set EMOTIVE_DATA (a folder of archives) or EMOTIVE_DATA_URL"
-            )
-    text = str(source)
-    if _is_url(text):
-        download(text, dest, progress=progress)
-        verify_archive(info, dest, source=text)
-        return dest
-    path = Path(text).expanduser()
-    if path.is_dir():
-        path = path / info.archive
-    if not path.is_file():
-        raise DataError(f"{path} does not exist: pass the {info.archive} file or its folder")
-    with atomic_output(dest) as tmp:
-        shutil.copyfile(path, tmp)
-        verify_archive(info, tmp, source=str(path))
-    return dest
-
-
-def _open(url: str, offset: int) -> tuple[http.client.HTTPResponse, int]:
-    """Open ``url`` asking for bytes from ``offset``; return the response and its start byte."""
-    headers = {"User-Agent": f"emotive/{emotive.__version__}"}
-    if offset:
-        headers["Range"] = f"bytes={offset}-"
+    text = str(_default_source(info) if source is None else source)
+    local = None if _is_url(text) else _local_source(info, text)
+    doing = f"fetching {info.name}"
     try:
-        resp = urllib.request.urlopen(
-            urllib.request.Request(url, headers=headers), timeout=_TIMEOUT_S
-        )
-    except urllib.error.HTTPError as exc:
-        if exc.code == 416 and offset:
-            # The partial file is already complete (or longer than the file): start over.
-            return _open(url, 0)
-        raise DataError(f"download of {url} failed: HTTP {exc.code} {exc.reason}") from None
-    except (urllib.error.URLError, OSError) as exc:
-        reason = getattr(exc, "reason", exc)
-        raise DataError(f"cannot reach {url} ({reason}): check the URL and the network") from None
-    if resp.status == 206:
-        content_range = resp.headers.get("Content-Range", "")
-        start = content_range.removeprefix("bytes ").split("-")[0]
-        if start.isdigit() and int(start) == offset:
-            return resp, offset
-        resp.close()
-        if offset:
-            return _open(url, 0)
-        raise DataError(
-            f"download of {url} failed: the server sent part of the file unasked; try another URL"
-        )
-    return resp, 0
-
-
-def download(url: str, dest: Path, *, progress: bool = False) -> Path:
-    """Download ``url`` to ``dest`` through ``dest.part``, resuming a partial ``.part``.
-
-    A server that honours HTTP ``Range`` continues where the last attempt stopped; one that does
-    not sends the whole file again. ``dest`` appears only when the download is complete.
-
-    Raises:
-        DataError: the server answers with an error, or the transfer breaks off (the ``.part``
-            file is kept so the next call resumes).
-    """
-    dest = Path(dest)
-    part = dest.with_name(dest.name + ".part")
-    offset = part.stat().st_size if part.exists() else 0
-    resp, start = _open(url, offset)
-    length = resp.headers.get("Content-Length")
-    total = start + int(length) if length and length.isdigit() else None
-    done = start
-    bar = None
-    if progress:
-        bar = Progress(
-            "[progress.description]{task.description}", BarColumn(), DownloadColumn(),
-            TransferSpeedColumn(), TimeRemainingColumn(),
-        )
-        task = bar.add_task(dest.name, total=total, completed=done)
-        bar.start()
-    try:
-        with resp, open(part, "ab" if start else "wb") as fh:
-            while block := resp.read(_CHUNK):
-                fh.write(block)
-                done += len(block)
-                if bar is not None:
-                    bar.update(task, completed=done)
-    except (OSError, http.client.HTTPException) as exc:
-        raise DataError(
-            f"download of {url} broke off after {done} bytes ({exc}); run the same command "
-            f"again to resume from {part}"
-        ) from None
-    finally:
-        if bar is not None:
-            bar.stop()
-    if total is not None and done != total:
-        raise DataError(
-            f"download of {url} stopped at {done} of {total} bytes; run the same command again "
-            f"to resume from {part}"
-        )
-    os.replace(part, dest)
+        dest.parent.mkdir(parents=True, exist_ok=True)
+        with file_lock(dest.parent / f".{info.archive}.lock", what=doing):
+            if local is not None:
+                _copy_checked(info, local, dest)
+            else:
+                download(text, dest, progress=progress)
+                verify_archive(info, dest, source=text)
+    except OSError as exc:
+        raise disk_error(exc, dest.parent, doing) from None
     return dest
 
 
@@ -413,10 +452,10 @@ def fetch(
     archive = archive_cache_path(info)
     if force or source is not None or not archive.is_file():
         archive = fetch_archive(info, source, progress=progress)
-    else:
-        try:
-            verify_archive(info, archive)
-        except ChecksumError:
-            log.warning("removed corrupt %s; fetching it again", archive)
-            archive = fetch_archive(info, None, progress=progress)
-    return extract_archive(info, archive)
+        return extract_archive(info, archive, remove=True, force=force)
+    try:
+        return extract_archive(info, archive, remove=True)
+    except ChecksumError:
+        log.warning("removed corrupt %s; fetching it again", archive)
+    archive = fetch_archive(info, None, progress=progress)
+    return extract_archive(info, archive, remove=True)

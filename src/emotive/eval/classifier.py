@@ -53,11 +53,12 @@ from torch import nn
 from emotive.core.motion import Motion
 from emotive.core.roles import ROLES, JointRoles, resolve_roles
 from emotive.data.emotion import DEFAULT_LABELS, check_labels
-from emotive.errors import EmotiveError
+from emotive.errors import ConfigError, EmotiveError
 from emotive.features.affective import affective_features_np, role_indices
 from emotive.features.contacts import foot_contacts, leg_length
 from emotive.features.movement import facing_directions, movement_features
 from emotive.io.atomic import atomic_output
+from emotive.models.training import check_values, load_weights, read_checkpoint, require_keys
 
 #: Number of per-frame feature columns.
 NUM_FEATURES = 2 * 3 * len(ROLES) + 18 + 8
@@ -79,6 +80,10 @@ ROLE_EDGES: tuple[tuple[str, str], ...] = (
 
 class ClassifierError(EmotiveError):
     """A classifier file that cannot be used, motion too short to classify, or a bad config."""
+
+
+class ClassifierFileError(ClassifierError, ConfigError):
+    """A classifier file that is missing, unreadable, or holds a bad entry."""
 
 
 @dataclass(frozen=True)
@@ -415,29 +420,49 @@ class EmotionClassifier:
 
     @classmethod
     def load(cls, path: str | Path) -> EmotionClassifier:
-        """Read a file written by :meth:`save`.
+        """Read a file written by :meth:`save`, checked entry by entry.
+
+        The weights are checked tensor by tensor (keys and shapes of the config's network,
+        finite values of a plausible size); ``mean`` and ``std`` must be ``(F,)``, finite, the
+        ``std`` above 0; ``metrics`` a JSON text.
 
         Raises:
-            ClassifierError: missing, corrupt or not a classifier file.
+            ClassifierFileError: missing, a folder, unreadable, or not a usable classifier
+                file; one line naming the file, the bad entry and the fix (also a
+                :class:`~emotive.errors.ConfigError`).
         """
         path = Path(path)
+        if not path.exists():
+            raise ClassifierFileError(f"classifier file {path} does not exist") from None
         try:
-            payload = torch.load(path, map_location="cpu", weights_only=True)
-            if payload.get("format") != "emotive-emotion-classifier/1":
-                raise KeyError("format")
-            config = ClassifierConfig.from_dict(payload["config"])
-            net = build_net(config)
-            net.load_state_dict(payload["state"])
-        except FileNotFoundError:
-            raise ClassifierError(f"classifier file {path} does not exist") from None
-        except Exception as exc:  # torch raises many types on corrupt files
-            raise ClassifierError(
-                f"classifier file {path} is not a valid emotive classifier ({exc}); "
-                "train one with `emotive train classifier` or use the built-in one"
-            ) from None
-        net.eval()
-        return cls(config, net, payload["mean"].numpy(), payload["std"].numpy(),
-                   json.loads(payload["metrics"]))
+            return read_checkpoint(path, "a valid emotive classifier", _build,
+                                   "train one with `emotive train classifier` or use the "
+                                   "built-in one")[0]
+        except ConfigError as exc:
+            raise ClassifierFileError(f"classifier file {exc}") from None
+
+
+def _build(payload: dict) -> EmotionClassifier:
+    """The classifier of a loaded file (``ValueError`` and others on a bad entry)."""
+    if payload.get("format") != "emotive-emotion-classifier/1":
+        raise ValueError("no 'format' entry 'emotive-emotion-classifier/1'")
+    require_keys(payload, {"config": dict, "state": dict, "mean": torch.Tensor,
+                           "std": torch.Tensor, "metrics": str})
+    config = ClassifierConfig.from_dict(payload["config"])
+    net = build_net(config)
+    load_weights(net, payload["state"])
+    stats = {}
+    for name in ("mean", "std"):
+        value = payload[name]
+        if tuple(value.shape) != (NUM_FEATURES,):
+            raise ValueError(f"{name!r} has shape {tuple(value.shape)}, not ({NUM_FEATURES},)")
+        check_values(value, repr(name), positive=name == "std")
+        stats[name] = value.numpy().astype(np.float32)
+    metrics = json.loads(payload["metrics"])
+    if not isinstance(metrics, dict):
+        raise ValueError(f"'metrics' holds a {type(metrics).__name__}, not a JSON object")
+    net.eval()
+    return EmotionClassifier(config, net, stats["mean"], stats["std"], metrics)
 
 
 def default_classifier_path() -> Path:

@@ -1,7 +1,8 @@
 """Evaluation reports: ``report.md``, ``metrics.json`` and PNG plots in one folder.
 
-The files are made in a temporary folder beside the destination and moved in only when all of
-them are written, so a failed run leaves the destination as it was.
+The files are made in a temporary folder beside the destination, flushed to the disk and moved
+in only when all of them are written, so a failed run leaves the destination as it was; a
+write fault is one :class:`~emotive.errors.OutputError`.
 """
 
 from __future__ import annotations
@@ -16,6 +17,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from emotive.io.atomic import output_error
 
 #: Keys of suite results that feed the plots but are too bulky for ``metrics.json``.
 _PLOT_ONLY = ("trajectory", "path")
@@ -266,20 +269,8 @@ def _section(name: str, result: dict) -> list[str]:
     return [*out, ""]
 
 
-def write_report(out: str | Path, title: str, results: dict[str, dict],
-                 info: dict[str, Any]) -> Path:
-    """Write ``report.md``, ``metrics.json`` and the plots of suite results into ``out``.
-
-    Args:
-        out: destination folder (made if missing; files of the same names are replaced).
-        title: the report's heading (the evaluated model).
-        results: suite name -> suite result.
-        info: facts printed at the top and saved in ``metrics.json`` (model, classifier, ...).
-
-    Returns:
-        The folder.
-    """
-    out = Path(out)
+def _write_into(out: Path, title: str, results: dict[str, dict], info: dict[str, Any]) -> None:
+    """The body of :func:`write_report`; any :class:`OSError` propagates."""
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
     try:
@@ -296,9 +287,40 @@ def write_report(out: str | Path, title: str, results: dict[str, dict],
              "suites": {name: _strip(result) for name, result in results.items()}},
             indent=2, default=float,
         ))
+        # Every file is on the disk before any replaces an older one.
+        for file in tmp.iterdir():
+            fd = os.open(file, os.O_RDONLY)
+            try:
+                os.fsync(fd)
+            finally:
+                os.close(fd)
         out.mkdir(exist_ok=True)
         for file in tmp.iterdir():
             os.replace(file, out / file.name)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
+
+
+def write_report(out: str | Path, title: str, results: dict[str, dict],
+                 info: dict[str, Any]) -> Path:
+    """Write ``report.md``, ``metrics.json`` and the plots of suite results into ``out``.
+
+    Args:
+        out: destination folder (made if missing; files of the same names are replaced).
+        title: the report's heading (the evaluated model).
+        results: suite name -> suite result.
+        info: facts printed at the top and saved in ``metrics.json`` (model, classifier, ...).
+
+    Returns:
+        The folder.
+
+    Raises:
+        OutputError: the folder or a file in it cannot be written (full disk, read-only or
+            forbidden folder, a file of the folder's name); no temporary folder is left.
+    """
+    out = Path(out)
+    try:
+        _write_into(out, title, results, info)
+    except OSError as exc:
+        raise output_error(out, exc) from exc
     return out

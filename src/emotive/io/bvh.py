@@ -4,8 +4,10 @@ The reader accepts any rotation channel order, 3 or 6 channels per joint, End Si
 line ends, tabs, scientific notation and zero-frame files. Every problem raises
 :class:`~emotive.errors.BVHError` naming the file, the line and the fix; no partial
 :class:`~emotive.core.Motion` is ever returned. Lengths are converted to metres on reading
-(``unit``) and back to the file's unit on writing; rotations become unit quaternions
-``w, x, y, z``.
+(``unit``, detected from the figure's height by default) and back to the file's unit on
+writing; rotations become unit quaternions ``w, x, y, z``. Only regular files are read (a
+pipe or device is refused at once) and implausible numbers are refused before anything large
+is allocated: the limits are in :mod:`emotive.io.bvh_limits` and ``docs/limits.md``.
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ from __future__ import annotations
 import io
 import os
 import re
+import stat
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -22,13 +25,20 @@ from emotive.core.motion import Motion
 from emotive.core.skeleton import POSITION_CHANNELS, ROTATION_CHANNELS, Skeleton
 from emotive.errors import BVHError
 from emotive.io.atomic import atomic_output
+from emotive.io.bvh_limits import (
+    MAX_FILE_BYTES,
+    MAX_JOINTS,
+    UNITS,
+    angle_problem,
+    detect_unit,
+    figure_height,
+    frame_time_problem,
+    length_problem,
+    size_problem,
+)
 from emotive.transforms.np_rotations import euler_to_quaternion, quaternion_to_euler
 
-#: Metres per file unit for the units a BVH file may use.
-UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254}
 _VALID_CHANNELS = set(POSITION_CHANNELS) | set(ROTATION_CHANNELS)
-#: A rest pose taller than this many file units is taken as centimetres by ``unit="auto"``.
-_AUTO_CM_HEIGHT = 3.0
 
 
 @dataclass
@@ -87,24 +97,53 @@ class _Tokens:
         return self.items[self.pos][0] if self.pos < len(self.items) else None
 
 
-def _read_text(path: Path) -> str:
-    if path.is_dir():
-        raise BVHError(path, None, "is a directory, not a BVH file: pass the path of a .bvh file")
+def _read_bytes(path: Path) -> bytes:
+    """The bytes of a regular file; anything else is refused before it is opened."""
     try:
-        raw = path.read_bytes()
+        info = os.stat(path)
     except FileNotFoundError:
         raise BVHError(path, None, "no such file: check the path") from None
     except OSError as exc:
         raise BVHError(path, None, f"cannot be read ({exc.strerror})") from None
+    if stat.S_ISDIR(info.st_mode):
+        raise BVHError(path, None, "is a directory, not a BVH file: pass the path of a .bvh file")
+    try:
+        # Non-blocking, then checked again on the open file: a FIFO swapped in after the
+        # stat above must not block the read.
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_BINARY", 0))
+    except OSError as exc:
+        raise BVHError(path, None, f"cannot be read ({exc.strerror})") from None
+    with os.fdopen(fd, "rb") as fh:
+        info = os.fstat(fh.fileno())
+        if not stat.S_ISREG(info.st_mode):
+            raise BVHError(
+                path, None,
+                "is not a regular file (a pipe, socket or device): save the BVH to a file first",
+            )
+        if info.st_size > MAX_FILE_BYTES:
+            raise BVHError(
+                path, None,
+                f"is {info.st_size:,} bytes: at most {MAX_FILE_BYTES:,} are read; split the clip",
+            )
+        try:
+            # No size given: read(n) would reserve n bytes up front.
+            return fh.read()
+        except OSError as exc:
+            raise BVHError(path, None, f"cannot be read ({exc.strerror})") from None
+
+
+def _read_text(path: Path) -> str:
+    raw = _read_bytes(path)
+    if len(raw) > MAX_FILE_BYTES:
+        raise BVHError(path, None, f"grew past {MAX_FILE_BYTES:,} bytes while being read")
     if b"\x00" in raw[:4096]:
         raise BVHError(path, None, "is a binary file, not a BVH text file")
+    if raw.startswith(b"\xef\xbb\xbf"):
+        raw = raw[3:]
     try:
         return raw.decode("utf-8")
     except UnicodeDecodeError:
-        try:
-            return raw.decode("latin-1")
-        except UnicodeDecodeError:  # pragma: no cover - latin-1 decodes every byte
-            raise BVHError(path, None, "is not a text file") from None
+        return raw.decode("latin-1")
 
 
 def _parse_channels(tokens: _Tokens, name: str) -> tuple[str, ...]:
@@ -160,6 +199,37 @@ def _expect_motion(tokens: _Tokens) -> None:
         raise tokens.error(f"expected 'MOTION' after the hierarchy but found '{nxt}'")
 
 
+def _open_joint(tokens: _Tokens, joints: list[_Joint], seen: dict[str, int], parent: int) -> None:
+    """Read a joint's name and ``{`` and append it to ``joints``."""
+    line = tokens.line
+    name = tokens.next("a joint name")
+    if name in ("{", "}"):
+        tokens.pos -= 1
+        raise tokens.error("a joint needs a name before '{'")
+    if name in seen:
+        raise BVHError(
+            tokens.path, line,
+            f"duplicate joint name '{name}' (first on line {joints[seen[name]].line}): "
+            "rename one of them",
+        )
+    if len(joints) >= MAX_JOINTS:
+        raise BVHError(
+            tokens.path, line,
+            f"more than {MAX_JOINTS} joints: at most {MAX_JOINTS} are read; simplify the rig",
+        )
+    seen[name] = len(joints)
+    joints.append(_Joint(name, parent, line))
+    tokens.expect("{")
+
+
+def _close_joint(tokens: _Tokens, joint: _Joint) -> None:
+    """Check a joint whose ``}`` was just read."""
+    if joint.offset is None:
+        raise BVHError(tokens.path, joint.line, f"joint '{joint.name}' has no OFFSET")
+    if not joint.channels:
+        raise BVHError(tokens.path, joint.line, f"joint '{joint.name}' has no CHANNELS")
+
+
 def _parse_hierarchy(tokens: _Tokens) -> list[_Joint]:
     if tokens.peek() is None:
         raise tokens.error("the file is empty: a BVH file starts with HIERARCHY")
@@ -170,45 +240,28 @@ def _parse_hierarchy(tokens: _Tokens) -> list[_Joint]:
     if tok != "ROOT":
         tokens.pos -= 1
         raise tokens.error(f"expected 'ROOT' after HIERARCHY but found '{tok}': empty hierarchy")
-
-    def parse_joint(parent: int) -> None:
-        line = tokens.line
-        name = tokens.next("a joint name")
-        if name in ("{", "}"):
+    _open_joint(tokens, joints, seen, -1)
+    # An explicit stack of open joints: nesting depth is bounded by MAX_JOINTS, not by
+    # Python's recursion limit.
+    open_joints = [0]
+    while open_joints:
+        joint = joints[open_joints[-1]]
+        tok = tokens.next(f"the body of joint '{joint.name}'")
+        if tok == "OFFSET":
+            joint.offset = np.array([tokens.number(f"OFFSET of '{joint.name}'") for _ in range(3)])
+        elif tok == "CHANNELS":
+            joint.channels = _parse_channels(tokens, joint.name)
+        elif tok == "JOINT":
+            _open_joint(tokens, joints, seen, open_joints[-1])
+            open_joints.append(len(joints) - 1)
+        elif tok == "End":
+            joint.end_sites.append(_parse_end_site(tokens, joint.name))
+        elif tok == "}":
+            _close_joint(tokens, joint)
+            open_joints.pop()
+        else:
             tokens.pos -= 1
-            raise tokens.error("a joint needs a name before '{'")
-        if name in seen:
-            raise BVHError(
-                tokens.path, line,
-                f"duplicate joint name '{name}' (first on line {joints[seen[name]].line}): "
-                "rename one of them",
-            )
-        joint = _Joint(name, parent, line)
-        seen[name] = len(joints)
-        joints.append(joint)
-        me = len(joints) - 1
-        tokens.expect("{")
-        while True:
-            tok = tokens.next(f"the body of joint '{name}'")
-            if tok == "OFFSET":
-                joint.offset = np.array([tokens.number(f"OFFSET of '{name}'") for _ in range(3)])
-            elif tok == "CHANNELS":
-                joint.channels = _parse_channels(tokens, name)
-            elif tok == "JOINT":
-                parse_joint(me)
-            elif tok == "End":
-                joint.end_sites.append(_parse_end_site(tokens, name))
-            elif tok == "}":
-                break
-            else:
-                tokens.pos -= 1
-                raise _unexpected_in_joint(tokens, tok, name)
-        if joint.offset is None:
-            raise BVHError(tokens.path, line, f"joint '{name}' has no OFFSET")
-        if not joint.channels:
-            raise BVHError(tokens.path, line, f"joint '{name}' has no CHANNELS")
-
-    parse_joint(-1)
+            raise _unexpected_in_joint(tokens, tok, joint.name)
     _expect_motion(tokens)
     return joints
 
@@ -222,7 +275,7 @@ def _motion_header(path: str, lines: list[str], start: int) -> tuple[int, float,
             idx += 1
         if idx >= len(lines):
             raise BVHError(path, idx, f"the MOTION part ends before '{key}': the file is truncated")
-        text = lines[idx].strip()
+        text = " ".join(lines[idx].split())  # "Frame\tTime:" is "Frame Time:"
         if not text.startswith(key):
             raise BVHError(path, idx + 1, f"expected '{key}' but found '{text[:40]}'")
         values[key] = text[len(key):].strip()
@@ -244,6 +297,9 @@ def _motion_header(path: str, lines: list[str], start: int) -> tuple[int, float,
         raise BVHError(
             path, start + 3, f"'Frame Time:' must be a positive number, found '{found}'"
         ) from None
+    problem = frame_time_problem(frame_time)
+    if problem:
+        raise BVHError(path, start + 3, problem)
     return frames, frame_time, idx
 
 
@@ -295,17 +351,56 @@ def _parse_frames(path: str, lines: list[str], first: int, frames: int, width: i
     return values
 
 
-def _resolve_unit(unit: str, offsets: np.ndarray, parents: np.ndarray) -> str:
+def _resolve_unit(unit: str, joints: list[_Joint], parents: np.ndarray) -> str:
     if unit != "auto":
         if unit not in UNITS:
             raise ValueError(f"unit must be 'auto' or one of {sorted(UNITS)}, got {unit!r}")
         return unit
-    # Height of the rest pose: the vertical extent of the joints.
-    pos = np.zeros_like(offsets)
-    for j, p in enumerate(parents):
-        pos[j] = offsets[j] + (pos[p] if p >= 0 else 0.0)
-    extent = np.ptp(pos, axis=0).max() if len(pos) > 1 else 0.0
-    return "cm" if extent > _AUTO_CM_HEIGHT else "m"
+    offsets = np.stack([j.offset for j in joints])
+    esp = np.array([n for n, j in enumerate(joints) for _ in j.end_sites], dtype=np.int64)
+    eso = np.array([o for j in joints for o in j.end_sites]).reshape(-1, 3)
+    return detect_unit(figure_height(offsets, parents, esp, eso))
+
+
+def _check_values(path: str, joints: list[_Joint], values: np.ndarray, scale: float) -> None:
+    """Refuse implausible lengths and angles (see :mod:`emotive.io.bvh_limits`)."""
+    offsets = np.stack([j.offset for j in joints] + [o for j in joints for o in j.end_sites])
+    chans = [c for j in joints for c in j.channels]
+    is_pos = np.array([c in POSITION_CHANNELS for c in chans], dtype=bool)
+    problem = (
+        length_problem(offsets * scale, "joint offsets")
+        or length_problem(values[:, is_pos] * scale, "position channels")
+        or angle_problem(values[:, ~is_pos])
+    )
+    if problem:
+        raise BVHError(path, None, problem)
+
+
+def _channels_to_pose(
+    joints: list[_Joint], values: np.ndarray, offsets_m: np.ndarray, scale: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(T, J, 4)`` rotations and ``(T, J, 3)`` positions from ``(T, C)`` channel values.
+
+    Joints are converted in one batch per rotation order, not one call per joint.
+    """
+    frames, n_joints = len(values), len(joints)
+    rotations = np.zeros((frames, n_joints, 4))
+    positions = np.broadcast_to(offsets_m, (frames, n_joints, 3)).copy()
+    by_order: dict[str, tuple[list[int], list[list[int]]]] = {}
+    col = 0
+    for j, joint in enumerate(joints):
+        rot_cols = [col + k for k, c in enumerate(joint.channels) if c in ROTATION_CHANNELS]
+        order = "".join(joint.channels[k - col][0] for k in rot_cols)
+        group = by_order.setdefault(order, ([], []))
+        group[0].append(j)
+        group[1].append(rot_cols)
+        for k, c in enumerate(joint.channels):
+            if c in POSITION_CHANNELS:
+                positions[:, j, POSITION_CHANNELS.index(c)] = values[:, col + k] * scale
+        col += len(joint.channels)
+    for order, (js, cols) in by_order.items():
+        rotations[:, js] = euler_to_quaternion(np.deg2rad(values[:, cols]), order)
+    return rotations, positions
 
 
 def read_bvh(path: str | os.PathLike, unit: str = "auto") -> Motion:
@@ -314,14 +409,16 @@ def read_bvh(path: str | os.PathLike, unit: str = "auto") -> Motion:
     Args:
         path: the ``.bvh`` file.
         unit: the file's length unit, one of ``"m"``, ``"cm"``, ``"mm"``, ``"in"``, or
-            ``"auto"`` (centimetres when the rest pose spans more than 3 units, else metres).
+            ``"auto"``: the unit that makes the rest pose's standing height 1.2-2.2 m
+            (:func:`emotive.io.bvh_limits.detect_unit`).
 
     Returns:
         The motion, with ``metadata`` holding ``name``, ``source`` and ``file_unit``.
 
     Raises:
-        BVHError: the file is missing, not a BVH text file, or malformed; the message names
-            the line and the problem.
+        BVHError: the file is missing, not a regular BVH text file, malformed or beyond
+            the limits of :mod:`emotive.io.bvh_limits`; the message names the line and the
+            problem.
     """
     path = Path(path)
     text = _read_text(path)
@@ -330,35 +427,28 @@ def read_bvh(path: str | os.PathLike, unit: str = "auto") -> Motion:
     header = lines if motion_idx is None else lines[:motion_idx + 1]
     tokens = _Tokens(str(path), header)
     joints = _parse_hierarchy(tokens)
-    assert motion_idx is not None  # _parse_hierarchy raises without MOTION
+    if motion_idx is None:
+        raise BVHError(path, tokens.line, "'MOTION' must stand alone on its line")
     frames, frame_time, data_start = _motion_header(str(path), lines, motion_idx)
     width = sum(len(j.channels) for j in joints)
+    problem = size_problem(frames, width, len(joints))
+    if problem:
+        raise BVHError(path, motion_idx + 2, problem)
     values = _parse_frames(str(path), lines, data_start, frames, width)
 
     names = tuple(j.name for j in joints)
-    parents = np.array([j.parent for j in joints])
+    parents = np.array([j.parent for j in joints], dtype=np.int64)
     offsets = np.stack([j.offset for j in joints])
-    file_unit = _resolve_unit(unit, offsets, parents)
+    file_unit = _resolve_unit(unit, joints, parents)
     scale = UNITS[file_unit]
+    _check_values(str(path), joints, values, scale)
     esp = np.array([n for n, j in enumerate(joints) for _ in j.end_sites], dtype=np.int64)
     eso = np.array([o for j in joints for o in j.end_sites]).reshape(-1, 3)
     skeleton = Skeleton(
         names, parents, offsets * scale, tuple(j.channels for j in joints), esp, eso * scale
     )
 
-    n_joints = len(joints)
-    rotations = np.zeros((frames, n_joints, 4))
-    positions = np.broadcast_to(skeleton.offsets, (frames, n_joints, 3)).copy()
-    col = 0
-    for j, joint in enumerate(joints):
-        block = values[:, col:col + len(joint.channels)]
-        col += len(joint.channels)
-        rot_cols = [k for k, c in enumerate(joint.channels) if c in ROTATION_CHANNELS]
-        order = "".join(joint.channels[k][0] for k in rot_cols)
-        rotations[:, j] = euler_to_quaternion(np.deg2rad(block[:, rot_cols]), order)
-        for k, c in enumerate(joint.channels):
-            if c in POSITION_CHANNELS:
-                positions[:, j, POSITION_CHANNELS.index(c)] = block[:, k] * scale
+    rotations, positions = _channels_to_pose(joints, values, skeleton.offsets, scale)
     fps = 1.0 / frame_time
     # Files store the frame time rounded (0.0333333); snap to the whole rate it stands for.
     if abs(fps - round(fps)) < 1e-4 * fps:
@@ -420,6 +510,19 @@ def _frame_values(motion: Motion, scale: float) -> np.ndarray:
     return np.stack(columns, axis=1) if columns else np.zeros((motion.num_frames, 0))
 
 
+def _detectable_unit(skeleton: Skeleton, preferred: str) -> str:
+    """``preferred`` if :func:`read_bvh` detects it back from a file in it, else one it does."""
+    if preferred not in UNITS:
+        return preferred
+    height_m = figure_height(
+        skeleton.offsets, skeleton.parents, skeleton.end_site_parents, skeleton.end_site_offsets
+    )
+    for unit in (preferred, "m", "mm"):
+        if detect_unit(height_m / UNITS[unit]) == unit:
+            return unit
+    return preferred  # pragma: no cover - metres or millimetres always detect back
+
+
 def write_bvh(motion: Motion, path: str | os.PathLike, unit: str | None = None) -> Path:
     """Write a motion to a BVH file atomically (a temporary file renamed into place).
 
@@ -430,14 +533,17 @@ def write_bvh(motion: Motion, path: str | os.PathLike, unit: str | None = None) 
     Args:
         motion: the motion to write.
         path: destination ``.bvh`` path; its folder must exist.
-        unit: length unit of the file; defaults to the unit the motion was read from
-            (``motion.metadata["file_unit"]``), else centimetres.
+        unit: length unit of the file; by default the unit the motion was read from
+            (``motion.metadata["file_unit"]``), else centimetres, unless :func:`read_bvh`
+            would detect another unit in that file (a figure outside 1.2-2.2 m, read with an
+            explicit ``unit``): then the unit it detects back (metres or millimetres).
 
     Returns:
         The written path.
     """
     path = Path(path)
-    unit = unit or motion.metadata.get("file_unit", "cm")
+    if unit is None:
+        unit = _detectable_unit(motion.skeleton, motion.metadata.get("file_unit", "cm"))
     if unit not in UNITS:
         raise ValueError(f"unit must be one of {sorted(UNITS)}, got {unit!r}")
     scale = UNITS[unit]

@@ -3,15 +3,19 @@
 * Config I/O: :class:`DictConfig` (a frozen dataclass to and from a JSON-safe dict, as saved
   in every checkpoint) and :func:`load_settings` (``[model]`` and ``[train]`` of a TOML file).
 * Random state: :func:`seed_everything`, :func:`rng_state`, :func:`restore_rng_state`.
-* Checkpoints: :func:`save_checkpoint` (atomic), :func:`read_checkpoint` (typed errors),
+* Checkpoints: :func:`save_checkpoint` (atomic, a failed write an
+  :class:`~emotive.errors.OutputError`), :func:`read_checkpoint` (typed one-line errors),
   :func:`slim_checkpoint` (the committed, optimizer-free copy).
+* Checkpoint validation, for the loaders' ``build``: :func:`require_keys` (keys and types),
+  :func:`check_values` (finite numbers of a plausible size; standard deviations above 0) and
+  :func:`load_weights` (keys and shapes against the network of the config, then the values).
 * Resume: :func:`training_paths`, :func:`check_resumable`, :func:`resumed_log`.
 * The epoch loop :func:`run_epochs`: a trainer gives its epoch (the updates over one pass of
   the batches), its checkpoint and its random state; the loop keeps the log (one row per
   epoch, ``log.csv`` rewritten atomically), writes ``best.pt`` when the epoch's score improves
-  and ``last.pt`` after every epoch, draws the progress bars, and on Ctrl-C saves the weights
-  reached in ``last.pt`` with the random state of the interrupted epoch's start, so that
-  ``--resume`` reruns that epoch with the same batch order.
+  and ``last.pt`` after every epoch, and draws the progress bars. Ctrl-C leaves ``last.pt`` at
+  the last finished epoch (the weights reached inside the interrupted epoch are dropped), so
+  that ``--resume`` reruns that epoch from its start and gives the results of not stopping.
 """
 
 from __future__ import annotations
@@ -20,6 +24,7 @@ import csv
 import io
 import json
 import math
+import pickle
 import time
 import tomllib
 from collections.abc import Callable
@@ -33,10 +38,15 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
 from emotive.data.emotion import ALL_LABELS
-from emotive.errors import ConfigError, EmotiveError
+from emotive.errors import ConfigError, EmotiveError, OutputError
 from emotive.io.atomic import atomic_output
 
 T = TypeVar("T")
+
+#: Largest magnitude a saved weight, statistic or control may have. Trained values stay within
+#: a few units; one beyond this comes from a diverged training or a corrupt file, and would
+#: make every output NaN or absurd.
+MAX_MAGNITUDE = 1e6
 
 
 class DictConfig:
@@ -173,27 +183,165 @@ def restore_rng_state(rng: np.random.Generator, state: dict[str, Any],
         generator.set_state(state["torch"])
 
 
+def one_line(exc: BaseException) -> str:
+    """The first line of an exception's message (torch's run over several), or its type."""
+    text = str(exc).strip()
+    return text.splitlines()[0] if text else type(exc).__name__
+
+
+def _write_failure(exc: BaseException) -> str:
+    """Why a write failed, in one line: the system's reason, or torch's zip writer failing."""
+    if isinstance(exc, OSError):
+        return exc.strerror or one_line(exc)
+    # torch's zip writer reports a short write (a full disk) as "[enforce fail at ...]".
+    return "the write stopped part-way, as on a full disk"
+
+
 def save_checkpoint(path: Path, checkpoint: dict[str, Any]) -> None:
-    """``torch.save`` to ``path`` atomically."""
-    with atomic_output(path) as tmp:
-        torch.save(checkpoint, tmp)
+    """``torch.save`` to ``path`` atomically: a failure leaves ``path`` as it was.
+
+    Raises:
+        OutputError: the file cannot be written (a full disk, no permission, no folder); no
+            temporary file is left and a previous ``path`` is kept.
+    """
+    try:
+        with atomic_output(path) as tmp:
+            torch.save(checkpoint, tmp)
+    except (OSError, RuntimeError) as exc:
+        raise OutputError(f"{path}: cannot write the checkpoint ({_write_failure(exc)}); free "
+                          "disk space or fix the folder's permissions, or give another --out"
+                          ) from None
+
+
+def require_keys(checkpoint: dict[str, Any], kinds: dict[str, type | tuple[type, ...]]) -> None:
+    """Check that ``checkpoint`` has each key of ``kinds``, of that type.
+
+    Raises:
+        ValueError: the first missing key or value of another type, named.
+    """
+    for key, kind in kinds.items():
+        if key not in checkpoint:
+            raise ValueError(f"no {key!r} entry")
+        if not isinstance(checkpoint[key], kind):
+            names = " or ".join(k.__name__ for k in (kind if isinstance(kind, tuple) else (kind,)))
+            raise ValueError(f"{key!r} is a {type(checkpoint[key]).__name__}, not a {names}")
+
+
+def _check_array(array: np.ndarray, name: str, positive: bool) -> None:
+    """:func:`check_values` of one numeric array."""
+    if array.dtype.kind not in "biuf" or array.size == 0:
+        return
+    values = array.astype(np.float64, copy=False).reshape(-1)
+    bad = ~np.isfinite(values) | (np.abs(values) > MAX_MAGNITUDE)
+    if bad.any():
+        value = values[np.flatnonzero(bad)[0]]
+        size = "" if not np.isfinite(value) else f", beyond the plausible {MAX_MAGNITUDE:g}"
+        raise ValueError(f"{name} holds {value:g}{size}, as from a diverged training or a "
+                         "corrupt file")
+    if positive and not (values > 0).all():
+        value = values[np.flatnonzero(values <= 0)[0]]
+        raise ValueError(f"{name} holds {value:g}; a standard deviation must be above 0")
+
+
+def check_values(value: Any, name: str, positive: bool = False) -> None:
+    """Check that every number in ``value`` is finite and at most :data:`MAX_MAGNITUDE` in size.
+
+    Args:
+        value: a tensor, an array, a number, or a dict, list or tuple of them, as a checkpoint
+            holds weights, statistics and controls (strings, booleans and ``None`` pass).
+        name: how the message names ``value`` (``"state['fc.weight']"``).
+        positive: every number must also be above 0 (a standard deviation).
+
+    Raises:
+        ValueError: the first bad entry, named, in one line.
+    """
+    if isinstance(value, dict):
+        for key, item in value.items():
+            check_values(item, f"{name}[{key!r}]", positive)
+    elif isinstance(value, torch.Tensor):
+        if value.is_floating_point() or positive:
+            _check_array(value.detach().cpu().double().numpy(), name, positive)
+    elif isinstance(value, (list, tuple)):
+        try:
+            array = np.asarray(value)
+        except ValueError:  # ragged
+            array = np.asarray(None)
+        if array.dtype.kind in "biuf":
+            _check_array(array, name, positive)
+        else:
+            for k, item in enumerate(value):
+                check_values(item, f"{name}[{k}]", positive)
+    elif isinstance(value, (int, float, np.ndarray, np.number)) and not isinstance(value, bool):
+        _check_array(np.asarray(value), name, positive)
+
+
+def load_weights(module: torch.nn.Module, state: Any, name: str = "state") -> None:
+    """Load ``state`` into ``module`` after checking it tensor by tensor.
+
+    ``state`` must be a dict of tensors with exactly the keys and shapes of
+    ``module.state_dict()`` (the network its config builds), every value passing
+    :func:`check_values`, those of a key ending in ``std`` above 0.
+
+    Args:
+        module: the network built from the checkpoint's config.
+        state: the checkpoint's weights.
+        name: how the message names ``state``.
+
+    Raises:
+        ValueError: the first problem, named, in one line (not torch's multi-line report).
+    """
+    if not isinstance(state, dict):
+        raise ValueError(f"{name} is a {type(state).__name__}, not a dict of tensors")
+    expected = module.state_dict()
+    missing = [k for k in expected if k not in state]
+    if missing:
+        raise ValueError(f"{name} lacks {missing[0]!r} ({len(missing)} of the network's "
+                         f"{len(expected)} tensors missing): the weights do not match the config")
+    unexpected = [k for k in state if k not in expected]
+    if unexpected:
+        raise ValueError(f"{name} holds {unexpected[0]!r}, which the network of the config "
+                         "lacks: the weights do not match the config")
+    for key, want in expected.items():
+        got = state[key]
+        if not isinstance(got, torch.Tensor):
+            raise ValueError(f"{name}[{key!r}] is a {type(got).__name__}, not a tensor")
+        if got.shape != want.shape:
+            raise ValueError(f"{name}[{key!r}] has shape {tuple(got.shape)} but the config "
+                             f"needs {tuple(want.shape)}")
+        check_values(got, f"{name}[{key!r}]", positive=key.endswith("std"))
+    module.load_state_dict(state)
+
+
+def _read_failure(exc: BaseException) -> str:
+    """Why ``torch.load`` failed, in one line and in our words."""
+    if isinstance(exc, pickle.UnpicklingError) and "Weights only" in str(exc):
+        return "it holds Python objects, not only tensors, numbers and strings"
+    if isinstance(exc, OSError):
+        return f"cannot read it: {exc.strerror or one_line(exc)}"
+    return "truncated, corrupt, or not a PyTorch file"
 
 
 def read_checkpoint(path: str | Path, what: str, build: Callable[[dict[str, Any]], T],
                     fix: str) -> tuple[T, dict[str, Any]]:
     """A checkpoint dict and what ``build`` makes of it, every failure a :class:`ConfigError`.
 
+    The message is one line: torch's multi-line reports are replaced by our words, and an
+    exception of ``build`` gives its first line.
+
     Args:
         path: the checkpoint file.
         what: the kind of checkpoint expected, for the message (``"a gait checkpoint"``).
-        build: makes the model of the dict; any exception it raises means "not ``what``".
+        build: makes the model of the dict, validating it (:func:`require_keys`,
+            :func:`load_weights`, :func:`check_values`); any exception it raises means "not
+            ``what``", its first line the reason.
         fix: how the user gets a good checkpoint, for the message.
 
     Returns:
         ``(build(checkpoint), checkpoint)``.
 
     Raises:
-        ConfigError: ``path`` is a folder, is missing, or is not ``what``.
+        ConfigError: ``path`` is a folder, is missing, cannot be read (truncated, not a torch
+            file), or is not ``what``.
     """
     path = Path(path)
     if path.is_dir():
@@ -202,12 +350,14 @@ def read_checkpoint(path: str | Path, what: str, build: Callable[[dict[str, Any]
         raise ConfigError(f"{path}: checkpoint not found; {fix}")
     try:
         ckpt = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception as exc:  # torch raises many types on a file it cannot read
+        raise ConfigError(f"{path}: not {what} ({_read_failure(exc)}); {fix}") from None
+    try:
         if not isinstance(ckpt, dict):
             raise ValueError(f"holds a {type(ckpt).__name__}, not a dict")
         built = build(ckpt)
-    except Exception as exc:  # any failure to read is the same problem for the user
-        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        raise ConfigError(f"{path}: not {what} ({reason}); {fix}") from None
+    except Exception as exc:  # any failure to build is the same problem for the user
+        raise ConfigError(f"{path}: not {what} ({one_line(exc)}); {fix}") from None
     return built, ckpt
 
 
@@ -308,14 +458,27 @@ def resumed_log(checkpoint: dict[str, Any]) -> TrainingLog:
 
 
 def write_log(path: Path, history: list[dict[str, Any]], columns: tuple[str, ...]) -> None:
-    """The training log, one row per epoch (a missing value left empty), atomically."""
+    """The training log, one row per epoch (a missing value left empty), atomically.
+
+    Raises:
+        OutputError: the file cannot be written; a previous ``path`` is kept.
+    """
     text = io.StringIO()
     writer = csv.DictWriter(text, fieldnames=columns, lineterminator="\n")
     writer.writeheader()
     for row in history:
         writer.writerow({k: "" if row.get(k) is None else row[k] for k in columns})
-    with atomic_output(path) as tmp:
-        tmp.write_text(text.getvalue())
+    try:
+        with atomic_output(path) as tmp:
+            tmp.write_text(text.getvalue())
+    except OSError as exc:
+        raise OutputError(f"{path}: cannot write the training log ({_write_failure(exc)}); "
+                          "free disk space or fix the folder's permissions") from None
+
+
+def _kept(epochs_done: int | None) -> str:
+    """What ``last.pt`` holds, for a message."""
+    return "nothing of this run" if epochs_done is None else f"epoch {epochs_done}"
 
 
 def run_epochs(
@@ -331,6 +494,10 @@ def run_epochs(
 ) -> None:
     """Epochs ``log.start_epoch`` to ``epochs``, updating ``log`` and the files of ``out_dir``.
 
+    ``last.pt`` only ever holds the end of a finished epoch (with the random state there), so
+    resuming after Ctrl-C or kill -9 reruns the interrupted epoch from its start and gives the
+    results of not stopping.
+
     Args:
         log: history and best score so far (updated in place).
         epochs: the epoch count to reach.
@@ -344,16 +511,19 @@ def run_epochs(
         progress: progress bars and one line per epoch on stderr.
 
     Raises:
-        KeyboardInterrupt: after writing ``last.pt`` (Ctrl-C).
+        OutputError: a checkpoint or the log cannot be written; the message says which epoch
+            ``last.pt`` keeps.
+        KeyboardInterrupt: Ctrl-C, after putting ``log`` and ``log.csv`` back to the epoch
+            ``last.pt`` keeps (the interrupted epoch's updates are dropped).
     """
     last_path, best_path, csv_path = out_dir / "last.pt", out_dir / "best.pt", out_dir / "log.csv"
     console = Console(stderr=True)
     bars = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                     TimeElapsedColumn(), TextColumn("{task.fields[info]}"), console=console,
                     disable=not progress, transient=True)
-    epoch, epoch_state = log.start_epoch, rng_state()
-    # Whether the weights moved since last.pt was written (Ctrl-C then has something to save).
-    dirty = False
+    # Epochs done in last.pt by this run or the one it resumes; None before either wrote one.
+    kept: int | None = log.start_epoch or None
+    epoch, best_before = log.start_epoch, log.best_val
 
     try:
         with bars:
@@ -362,12 +532,10 @@ def run_epochs(
             batch_task = bars.add_task("batches", total=n_batches, info="")
 
             def batch_done(info: str) -> None:
-                nonlocal dirty
-                dirty = True
                 bars.update(batch_task, advance=1, info=info)
 
             for epoch in range(log.start_epoch, epochs):
-                epoch_state, began = rng_state(), time.perf_counter()
+                began, best_before = time.perf_counter(), log.best_val
                 bars.reset(batch_task, total=n_batches)
                 outcome = run_epoch(epoch, batch_done)
                 log.history.append({"epoch": epoch + 1, **outcome.row,
@@ -375,20 +543,30 @@ def run_epochs(
                 improved = outcome.score < log.best_val
                 log.best_val = min(log.best_val, outcome.score)
                 done = checkpoint(epoch + 1, rng_state())
-                if improved:
-                    save_checkpoint(best_path, done)
-                save_checkpoint(last_path, done)
-                dirty = False
-                write_log(csv_path, log.history, columns)
+                try:
+                    if improved:
+                        save_checkpoint(best_path, done)
+                    save_checkpoint(last_path, done)
+                    kept = epoch + 1
+                    write_log(csv_path, log.history, columns)
+                except OutputError as exc:
+                    raise OutputError(f"{exc}; training stopped after epoch {epoch + 1}, "
+                                      f"{last_path} keeps {_kept(kept)}") from None
                 summary = outcome.summary + ("  (best)" if improved else "")
                 bars.update(epochs_task, advance=1, info=summary)
                 if progress:
                     bars.console.print(f"epoch {epoch + 1}/{epochs}: {summary}"
                                        + (f"  {outcome.detail}" if outcome.detail else ""))
     except KeyboardInterrupt:
-        if dirty:
-            del log.history[epoch:]
-            save_checkpoint(last_path, checkpoint(epoch, epoch_state))
+        if kept != epoch + 1:
+            log.best_val = best_before
+        if kept is None:
+            del log.history[:]
+            console.print(f"interrupted in epoch {epoch + 1}, before any epoch finished: "
+                          f"nothing saved; run again to start over")
+        else:
+            del log.history[kept:]
             write_log(csv_path, log.history, columns)
-        console.print(f"interrupted: wrote {last_path}; continue with --resume")
+            console.print(f"interrupted in epoch {epoch + 1}: {last_path} keeps epoch {kept}; "
+                          "continue with --resume")
         raise

@@ -4,7 +4,10 @@ Files of any generated motion (:class:`~emotive.models.api.Generated`): BVH on t
 rig, NPZ, and a stick-figure preview captioned with the current emotion.
 
 Every file is written at the motion's own frame rate and atomically
-(:func:`emotive.io.atomic.atomic_output`), so an error never leaves a half-written file.
+(:func:`emotive.io.atomic.atomic_output`), so an error never leaves a half-written file, and
+the files of one command go through :func:`write_all`: when one of them fails (a full disk
+while encoding the preview, say), the new files already written by the same command are
+removed too, so a failed command leaves no output it made.
 
 NPZ keys: ``positions`` ``(T, J + E, 3)`` world positions of joints then end sites (metres, Y
 up), ``names`` ``(J + E,)`` joint names then ``<parent>_end`` for end sites, ``parents``
@@ -17,6 +20,7 @@ Legend: ``T`` frames, ``J`` joints, ``E`` end sites, ``C`` labels, ``P`` path po
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -70,6 +74,35 @@ def write_npz(generated: Generated, out: Path) -> Path:
     return out
 
 
+def write_all(writers: Sequence[tuple[Path, Callable[[], object]]]) -> list[Path]:
+    """Run each ``(path, write)`` in turn; if one fails, remove the new files of the others.
+
+    A file that existed before is replaced by the new, complete version as soon as its writer
+    is done, and kept; only files this call created are removed after a later failure.
+
+    Args:
+        writers: the output paths and the calls that write them (each atomically).
+
+    Returns:
+        The paths written, in order.
+
+    Raises:
+        OutputError: a file could not be written (the first writer's error, as it is).
+    """
+    existed = [Path(path).exists() for path, _ in writers]
+    done: list[Path] = []
+    try:
+        for path, write in writers:
+            write()
+            done.append(Path(path))
+    except BaseException:
+        for path, old in zip(done, existed, strict=False):
+            if not old:
+                path.unlink(missing_ok=True)
+        raise
+    return done
+
+
 def write_generated(generated: Generated, out: Path, npz: Path | None = None,
                     preview: Path | None = None, progress: bool = False) -> list[Path]:
     """Write a generated motion to ``out``, and optionally an NPZ and a preview.
@@ -88,27 +121,27 @@ def write_generated(generated: Generated, out: Path, npz: Path | None = None,
         The files written.
 
     Raises:
-        OutputError: an output of the wrong kind or in a missing folder (checked before any
-            file is written).
+        OutputError: an output of the wrong kind, a folder's name or in a missing or
+            unwritable folder (checked before any file is written), or a file that could not
+            be written whole (then none of the new files is left).
     """
     check_output(out, OUT_SUFFIXES, "--out")
     if npz is not None:
         check_output(npz, (".npz",), "--npz")
     if preview is not None:
         check_output(preview, PREVIEW_SUFFIXES, "--preview")
-    written = []
     if out.suffix.lower() == ".bvh":
-        written.append(write_bvh(generated.motion, out))
+        writers = [(out, lambda: write_bvh(generated.motion, out))]
     else:
-        written.append(write_npz(generated, out))
+        writers = [(out, lambda: write_npz(generated, out))]
     if npz is not None:
-        written.append(write_npz(generated, npz))
+        writers.append((npz, lambda: write_npz(generated, npz)))
     if preview is not None:
         path = generated.path
-        written.append(render_preview(
+        writers.append((preview, lambda: render_preview(
             generated.motion, preview, path_xz=path.points if path is not None else None,
             captions=captions(np.asarray(generated.emotion), generated.labels),
             title=f"{out.name}: {path.name}" if path is not None else out.name,
             progress=progress,
-        ))
-    return [Path(p) for p in written]
+        )))
+    return write_all(writers)

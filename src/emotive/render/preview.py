@@ -9,7 +9,8 @@ trail; left limbs are blue, right limbs red; a caption gives the time and, per f
 the caller passes (the current emotion, say).
 
 Encoding goes through the ffmpeg binary that the ``imageio-ffmpeg`` wheel ships, streaming
-frames, so memory does not grow with the clip length. GIFs get a palette computed over the
+frames, so memory does not grow with the clip length (:mod:`emotive.render.video`, which
+checks the encoder's result and the finished file). GIFs get a palette computed over the
 whole clip.
 
 Legend: ``T`` frames, ``J + E`` joints then end sites, ``N`` bones.
@@ -30,6 +31,7 @@ from scipy.ndimage import uniform_filter1d
 from emotive.core.motion import Motion
 from emotive.errors import EmotiveError
 from emotive.io.atomic import atomic_output
+from emotive.render.video import VideoEncoder
 
 #: Output formats by file suffix.
 PREVIEW_SUFFIXES = (".mp4", ".gif")
@@ -127,14 +129,6 @@ def _grid(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     return np.array(along_z + along_x, dtype=np.float64)
 
 
-def _ffmpeg_options(suffix: str) -> dict:
-    if suffix == ".gif":
-        palette = "split[a][b];[a]palettegen=max_colors=64:stats_mode=full[p];[b][p]paletteuse"
-        return {"codec": "gif", "pix_fmt_out": "pal8", "macro_block_size": 1,
-                "output_params": ["-filter_complex", palette]}
-    return {"codec": "libx264", "pix_fmt_out": "yuv420p", "quality": 7, "macro_block_size": 16}
-
-
 def render_preview(
     motion: Motion,
     out: str | os.PathLike,
@@ -164,8 +158,10 @@ def render_preview(
         The written path.
 
     Raises:
-        PreviewError: unknown suffix, missing folder, empty clip, or captions of the wrong
-            length.
+        PreviewError: unknown suffix, a folder's name, missing folder, empty clip, or captions
+            of the wrong length.
+        OutputError: the video cannot be written whole (full disk, read-only folder, the
+            encoder failing); nothing is left behind.
     """
     from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: PLC0415 (heavy: matplotlib)
     from matplotlib.collections import LineCollection  # noqa: PLC0415 (heavy: matplotlib)
@@ -177,6 +173,9 @@ def render_preview(
         raise PreviewError(
             f"preview {out}: unknown video type {out.suffix!r}; use one of {PREVIEW_SUFFIXES}"
         )
+    if out.is_dir():
+        raise PreviewError(f"preview {out}: that is a folder; name a file in it, e.g. "
+                           f"{out / 'preview.gif'}")
     if not out.parent.is_dir():
         raise PreviewError(f"preview {out}: the folder {out.parent} does not exist; create it")
     if motion.num_frames == 0:
@@ -233,24 +232,19 @@ def render_preview(
     if title:
         ax.text(0.98, 0.97, title, transform=ax.transAxes, va="top", ha="right", fontsize=10)
 
-    with atomic_output(out) as tmp:
-        import imageio_ffmpeg  # noqa: PLC0415 (heavy: imageio_ffmpeg)
-
-        writer = imageio_ffmpeg.write_frames(str(tmp), (width, height), fps=rate,
-                                             **_ffmpeg_options(suffix))
-        writer.send(None)
-        try:
-            for t in track(frames, description=f"rendering {out.name}", disable=not progress,
-                           console=Console(stderr=True), transient=True):
-                ax.set_xlim(centre[t, 0] - half_w, centre[t, 0] + half_w)
-                ax.set_ylim(centre[t, 1] - half_h, centre[t, 1] + half_h)
-                figure.set_segments(screen[t][idx])
-                trail_line.set_data(trail[: t + 1, 0], trail[: t + 1, 1])
-                text = f"{t / motion.fps:6.2f} s"
-                caption.set_text(text + (f"  {captions[t]}" if captions is not None else ""))
-                canvas.draw()
-                rgb = np.asarray(canvas.buffer_rgba())[..., :3]
-                writer.send(np.ascontiguousarray(rgb).tobytes())
-        finally:
-            writer.close()
+    with atomic_output(out) as tmp, VideoEncoder(tmp, size, rate, gif=suffix == ".gif",
+                                                 name=out) as video:
+        # No bar when stderr is no terminal: it would leave a blank line in logs.
+        console = Console(stderr=True)
+        for t in track(frames, description=f"rendering {out.name}", console=console,
+                       disable=not (progress and console.is_terminal), transient=True):
+            ax.set_xlim(centre[t, 0] - half_w, centre[t, 0] + half_w)
+            ax.set_ylim(centre[t, 1] - half_h, centre[t, 1] + half_h)
+            figure.set_segments(screen[t][idx])
+            trail_line.set_data(trail[: t + 1, 0], trail[: t + 1, 1])
+            text = f"{t / motion.fps:6.2f} s"
+            caption.set_text(text + (f"  {captions[t]}" if captions is not None else ""))
+            canvas.draw()
+            rgb = np.asarray(canvas.buffer_rgba())[..., :3]
+            video.send(np.ascontiguousarray(rgb).tobytes())
     return out

@@ -1,5 +1,6 @@
 """Tests of the gait training loop on a few real windows: loss goes down, checkpoints and CSV,
-determinism, exact resume, Ctrl-C saving, scheduled sampling and config errors."""
+determinism, exact resume (also after Ctrl-C inside an epoch), scheduled sampling and config
+errors."""
 
 from __future__ import annotations
 
@@ -98,23 +99,34 @@ def test_same_seed_same_run_and_resume_equals_an_uninterrupted_run(data, tmp_pat
 
 
 @pytest.mark.data
-def test_ctrl_c_inside_an_epoch_leaves_a_loadable_last_checkpoint(data, tmp_path):
+def test_ctrl_c_inside_an_epoch_then_resume_equals_an_uninterrupted_run(data, tmp_path):
+    settings = replace(SETTINGS, epochs=3)
+    straight = run(data, tmp_path / "a", settings, seed=2)
+    interrupted = []
+
     def interrupt(epoch, batch):
-        if epoch == 1:
+        if (epoch, batch) == (1, 1) and not interrupted:
+            interrupted.append(True)
             raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
-        run(data, tmp_path, on_batch=interrupt)
-    net, ckpt = load_gait_checkpoint(tmp_path / "last.pt")
+        run(data, tmp_path / "b", settings, seed=2, on_batch=interrupt)
+    # last.pt stays at the end of epoch 1: the updates made inside epoch 2 are dropped.
+    _, ckpt = load_gait_checkpoint(tmp_path / "b" / "last.pt")
     assert ckpt["epoch"] == 1 and len(ckpt["history"]) == 1
-    assert len(read_csv(tmp_path / "log.csv")) == 1
-    # The weights reached inside epoch 2 were saved, not those at the end of epoch 1.
-    after_one = load_gait_checkpoint(tmp_path / "best.pt")[0]
-    assert any(not torch.equal(a, b) for a, b in zip(net.state_dict().values(),
-                                                      after_one.state_dict().values(),
-                                                      strict=True))
-    resumed = run(data, tmp_path, resume=True)
-    assert len(resumed.history) == 2
+    assert len(read_csv(tmp_path / "b" / "log.csv")) == 1
+    resumed = run(data, tmp_path / "b", settings, seed=2, resume=True, on_batch=interrupt)
+    assert losses(resumed.history) == losses(straight.history)
+    assert (losses(read_csv(tmp_path / "b" / "log.csv"))
+            == losses(read_csv(tmp_path / "a" / "log.csv")))
+    for k, v in straight.network.state_dict().items():
+        torch.testing.assert_close(resumed.network.state_dict()[k], v, rtol=0, atol=0)
+    for name in ("last.pt", "best.pt"):
+        a = torch.load(tmp_path / "a" / name, weights_only=True)
+        b = torch.load(tmp_path / "b" / name, weights_only=True)
+        assert a["epoch"] == b["epoch"]
+        for k, v in a["state"].items():
+            assert torch.equal(b["state"][k], v), (name, k)
 
 
 @pytest.mark.data

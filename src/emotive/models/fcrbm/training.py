@@ -14,7 +14,7 @@ the model generates (Gibbs sampling, mean-field last step) from the true past an
 checkpoint ``{"kind", "config", "train", "codec", "state", "velocity", "epoch", "rng",
 "best_val", "history", "seed"}`` is written atomically to ``last.pt`` after every epoch and to
 ``best.pt`` when the validation error is the lowest so far; ``log.csv`` has one row per epoch.
-Ctrl-C writes ``last.pt`` at the start of the interrupted epoch; ``resume`` continues from it
+Ctrl-C leaves ``last.pt`` at the last finished epoch; ``resume`` continues from it exactly,
 with the same batch order. The run is deterministic for a seed on CPU.
 
 Legend: ``T`` frames, ``D`` visible units, ``N`` order, ``M`` examples.
@@ -398,7 +398,7 @@ def train_fcrbm(
 
     Raises:
         ConfigError: ``resume`` without a last checkpoint or with other settings.
-        KeyboardInterrupt: after writing ``last.pt`` (Ctrl-C).
+        KeyboardInterrupt: Ctrl-C; ``last.pt`` keeps the last finished epoch.
     """
     out_dir = Path(out_dir)
     last_path = training_paths(out_dir, resume)

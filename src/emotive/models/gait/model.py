@@ -19,7 +19,13 @@ from emotive.errors import ConfigError
 from emotive.models.gait.config import GaitConfig
 from emotive.models.gait.controls import GaitControls
 from emotive.models.gait.network import GaitNetwork
-from emotive.models.training import read_checkpoint, slim_checkpoint
+from emotive.models.training import (
+    check_values,
+    load_weights,
+    read_checkpoint,
+    require_keys,
+    slim_checkpoint,
+)
 
 #: The committed default checkpoint, inside the package.
 DEFAULT_CHECKPOINT = "emotive-gait.pt"
@@ -65,13 +71,19 @@ def load_gait_checkpoint(path: str | Path) -> tuple[GaitNetwork, dict[str, Any]]
     The network (in eval mode) of a checkpoint written by
     :func:`~emotive.models.gait.training.train_gait`, and the checkpoint.
 
+    The weights are checked tensor by tensor (:func:`~emotive.models.training.load_weights`):
+    the keys and shapes of the config's network, finite values of a plausible size, feature
+    standard deviations above 0.
+
     Raises:
-        ConfigError: the file is missing, a folder, or not a gait checkpoint.
+        ConfigError: the file is missing, a folder, unreadable, or not a usable gait
+            checkpoint; one line naming the file, the bad entry and the fix.
     """
 
     def build(ckpt: dict[str, Any]) -> GaitNetwork:
+        require_keys(ckpt, {"config": dict, "state": dict})
         network = GaitNetwork(GaitConfig.from_dict(ckpt["config"]))
-        network.load_state_dict(ckpt["state"])
+        load_weights(network, ckpt["state"])
         return network
 
     network, ckpt = read_checkpoint(path, "a gait checkpoint", build,
@@ -80,25 +92,54 @@ def load_gait_checkpoint(path: str | Path) -> tuple[GaitNetwork, dict[str, Any]]
     return network, ckpt
 
 
+def read_controls(path: Path, ckpt: dict[str, Any], num_joints: int,
+                  fix: str = "retrain it with `emotive train gait`") -> GaitControls:
+    """The animation controls of a checkpoint, checked.
+
+    Args:
+        path: the checkpoint file, for the message.
+        ckpt: the checkpoint.
+        num_joints: the network's joint count, which the rig must have.
+        fix: how the user gets a good checkpoint, for the message.
+
+    Raises:
+        ConfigError: no controls (checkpoints written before the controls existed must be
+            retrained), a missing or bad entry, a number that is not finite or is absurd, a
+            rate or pace that is not positive, or a rig of another joint count.
+    """
+    if "controls" not in ckpt:
+        raise ConfigError(f"{path}: gait checkpoint without animation controls; {fix}")
+    values = ckpt["controls"]
+    try:
+        if not isinstance(values, dict):
+            raise TypeError(f"a {type(values).__name__}, not a dict")
+        check_values(values, "controls")
+        controls = GaitControls.from_dict(values)
+        for name in ("step_frequency", "speed", "fps"):
+            check_values(getattr(controls, name), f"controls[{name!r}]", positive=True)
+    except KeyError as exc:
+        raise ConfigError(f"{path}: bad animation controls in the checkpoint (no {exc} entry); "
+                          f"{fix}") from None
+    except (ValueError, TypeError) as exc:
+        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise ConfigError(f"{path}: bad animation controls in the checkpoint ({reason}); "
+                          f"{fix}") from None
+    if controls.skeleton.num_joints != num_joints:
+        raise ConfigError(f"{path}: the rig has {controls.skeleton.num_joints} joints, the "
+                          f"network {num_joints}; {fix}")
+    return controls
+
+
 def load_gait_model(path: str | Path | None = None) -> GaitModel:
     """A gait model from a checkpoint, by default the committed one.
 
     Raises:
-        ConfigError: the file is missing, corrupt, or not a gait checkpoint with controls
-            (checkpoints written before the controls existed must be retrained).
+        ConfigError: the file is missing, corrupt, or not a gait checkpoint with usable
+            controls (see :func:`read_controls`).
     """
     path = default_checkpoint_path() if path is None else Path(path)
     network, ckpt = load_gait_checkpoint(path)
-    if "controls" not in ckpt:
-        raise ConfigError(f"{path}: gait checkpoint without animation controls; retrain it with "
-                          "`emotive train gait`")
-    try:
-        controls = GaitControls.from_dict(ckpt["controls"])
-    except (KeyError, ValueError, TypeError) as exc:
-        raise ConfigError(f"{path}: bad animation controls in the checkpoint ({exc})") from None
-    if controls.skeleton.num_joints != network.config.num_joints:
-        raise ConfigError(f"{path}: the rig has {controls.skeleton.num_joints} joints, the "
-                          f"network {network.config.num_joints}")
+    controls = read_controls(path, ckpt, network.config.num_joints)
     return GaitModel(network, controls, path)
 
 

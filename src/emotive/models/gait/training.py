@@ -25,13 +25,12 @@ every loss term on train and val, learning rate, teacher-forcing ratio, seconds)
 atomically. A checkpoint is ``{"config", "train", "state", "optimizer", "epoch" (epochs done),
 "rng", "best_val", "history", "seed", "controls"}``, ``controls`` the rig, standing pose and
 walking paces the generator needs (:mod:`emotive.models.gait.controls`). Ctrl-C
-(``KeyboardInterrupt``) writes ``last.pt`` with the weights reached and re-raises.
+(``KeyboardInterrupt``) leaves ``last.pt`` at the last finished epoch and re-raises.
 
 Determinism: on CPU, a seed gives the same run (``torch.manual_seed`` for the weights, a NumPy
 generator for batch order and teacher forcing), and resuming from a checkpoint written at the
-end of an epoch gives the same results as not stopping. A checkpoint written by Ctrl-C inside
-an epoch resumes by running that epoch again from its start (same batch order) with the
-weights reached, so it is not bit-identical to an uninterrupted run.
+end of an epoch gives the same results as not stopping; after Ctrl-C inside an epoch,
+``last.pt`` is that end-of-epoch checkpoint, so resuming is bit-identical too.
 """
 
 from __future__ import annotations
@@ -365,7 +364,7 @@ def train_gait(
     Raises:
         ConfigError: ``resume`` without a last checkpoint, or one made with another model
             config or other training settings (``epochs`` may differ).
-        KeyboardInterrupt: after writing ``last.pt`` (Ctrl-C).
+        KeyboardInterrupt: Ctrl-C; ``last.pt`` keeps the last finished epoch.
     """
     out_dir = Path(out_dir)
     last_path = training_paths(out_dir, resume)

@@ -21,9 +21,9 @@ rotations only.
 
 A checkpoint is ``{"model": "quaternet", "config", "train", "state", "optimizer", "epoch",
 "rng", "best_val", "history", "seed", "controls"}``, ``controls`` as in a gait checkpoint
-(:func:`~emotive.models.gait.controls.gait_controls`). Ctrl-C writes ``last.pt`` with the
-weights reached and re-raises. A seed gives the same run on CPU, and resuming from the end of
-an epoch gives the results of not stopping.
+(:func:`~emotive.models.gait.controls.gait_controls`). Ctrl-C leaves ``last.pt`` at the last
+finished epoch and re-raises. A seed gives the same run on CPU, and resuming (after Ctrl-C or
+kill -9) gives the results of not stopping.
 """
 
 from __future__ import annotations
@@ -42,6 +42,7 @@ from emotive.models.gait.config import GaitConfig
 from emotive.models.gait.controls import gait_controls
 from emotive.models.gait.data import GaitBatch, GaitData, load_gait_data
 from emotive.models.gait.losses import GaitRig, motion_loss, pose_loss
+from emotive.models.gait.model import read_controls
 from emotive.models.gait.quaternet.config import QuaterNetConfig
 from emotive.models.gait.quaternet.network import QuaterNetOutputs, QuaterNetwork
 from emotive.models.gait.training import (
@@ -56,7 +57,9 @@ from emotive.models.training import (
     TrainingLog,
     check_resumable,
     load_settings,
+    load_weights,
     read_checkpoint,
+    require_keys,
     restore_rng_state,
     resumed_log,
     rng_state,
@@ -169,18 +172,24 @@ def evaluate_quaternet(network: QuaterNetwork, data: GaitData, rig: GaitRig, bat
 def load_quaternet_checkpoint(path: str | Path) -> tuple[QuaterNetwork, dict[str, Any]]:
     """The network of a checkpoint written by :func:`train_quaternet`, and the checkpoint.
 
+    The weights are checked tensor by tensor (:func:`~emotive.models.training.load_weights`)
+    and the animation controls as a gait checkpoint's
+    (:func:`~emotive.models.gait.model.read_controls`).
+
     Raises:
-        ConfigError: the file is missing, corrupt, or not a QuaterNet checkpoint.
+        ConfigError: the file is missing, corrupt, or not a usable QuaterNet checkpoint; one
+            line naming the file, the bad entry and the fix.
     """
 
     def build(ckpt: dict[str, Any]) -> QuaterNetwork:
+        require_keys(ckpt, {"config": dict, "state": dict})
         network = QuaterNetwork(QuaterNetConfig.from_dict(ckpt["config"]))
-        network.load_state_dict(ckpt["state"])
+        load_weights(network, ckpt["state"])
         return network
 
-    network, ckpt = read_checkpoint(
-        path, "a QuaterNet checkpoint", build,
-        "give a last.pt or best.pt written by `emotive train quaternet`")
+    fix = "give a last.pt or best.pt written by `emotive train quaternet`"
+    network, ckpt = read_checkpoint(path, "a QuaterNet checkpoint", build, fix)
+    read_controls(Path(path), ckpt, network.config.num_joints, fix)
     network.eval()
     return network, ckpt
 
@@ -213,7 +222,8 @@ def train_quaternet(
         ConfigError: ``resume`` without a last checkpoint or with one made with another config
             or other settings (``epochs`` may differ), or a rig whose joint count is not
             ``num_joints``.
-        KeyboardInterrupt: after writing ``last.pt`` (Ctrl-C).
+        OutputError: a checkpoint or the log cannot be written.
+        KeyboardInterrupt: Ctrl-C; ``last.pt`` keeps the last finished epoch.
     """
     out_dir = Path(out_dir)
     last_path = training_paths(out_dir, resume)

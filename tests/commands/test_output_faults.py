@@ -1,0 +1,175 @@
+"""Output faults through the command line: a full disk, a read-only folder, a folder named as
+the output, absurd weights and lengths. Each is one ``error:`` line, exit code 2, no output left
+and no "wrote" line (the faults are simulated: :mod:`disk_faults`)."""
+
+from __future__ import annotations
+
+import errno
+import sys
+from pathlib import Path
+
+import pytest
+
+from disk_faults import fill_disk, refuse_files
+from emotive.cli import main
+from emotive.io.bvh import write_bvh
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "models" / "mar"))
+from mar_helpers import CONFIG, examples, styled
+
+
+def run(capsys, *args: object) -> tuple[int, str, str]:
+    """Run ``emotive ARGS`` in-process; the exit code, stdout and stderr."""
+    with pytest.raises(SystemExit) as exc:
+        main([str(a) for a in args])
+    out = capsys.readouterr()
+    return exc.value.code, out.out, out.err
+
+
+def assert_one_error(code: int, out: str, err: str, *words: str) -> None:
+    """Exit code 2, nothing on stdout, one ``error:`` line holding ``words``, no "wrote"."""
+    assert code == 2 and out == "", (code, out, err)
+    assert err.startswith("error: ") and err.count("\n") == 1, err
+    assert "wrote" not in err and all(w in err for w in words), err
+
+
+@pytest.fixture(scope="module")
+def index(tmp_path_factory) -> Path:
+    """A synthetic style-transfer index (no data needed)."""
+    from emotive.models.mar.build import build_database
+
+    return build_database(examples(3), CONFIG).save(tmp_path_factory.mktemp("idx") / "i.npz")
+
+
+@pytest.fixture(scope="module")
+def clip(tmp_path_factory) -> Path:
+    """A synthetic walk in its own folder."""
+    return write_bvh(styled("walk", "neutral", take=2),
+                     tmp_path_factory.mktemp("clip") / "walk.bvh", unit="cm")
+
+
+def test_generate_onto_a_full_disk_leaves_no_bvh_and_no_gif(tmp_path, monkeypatch, capsys):
+    fill_disk(monkeypatch)
+    result = run(capsys, "generate", "--seconds", "1", "-o", tmp_path / "w.bvh", "--preview",
+                 tmp_path / "w.gif")
+    assert_one_error(*result, "cannot write", "w.bvh", "disk is full", "free space")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_full_disk_while_encoding_the_gif_removes_the_bvh_too(tmp_path, monkeypatch, capsys):
+    import emotive.render.preview as preview
+
+    real = preview.atomic_output
+
+    def gif_on_full_disk(path, *args, **kwargs):
+        fill_disk(monkeypatch)
+        return real(path, *args, **kwargs)
+
+    monkeypatch.setattr(preview, "atomic_output", gif_on_full_disk)
+    result = run(capsys, "generate", "--seconds", "1", "-o", tmp_path / "w.bvh", "--preview",
+                 tmp_path / "w.gif")
+    assert_one_error(*result, "cannot write", "w.gif", "disk is full")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_transfer_onto_a_full_disk(tmp_path, monkeypatch, capsys, index, clip):
+    fill_disk(monkeypatch)
+    result = run(capsys, "transfer", clip, "--style", "proud", "--index", index, "-o",
+                 tmp_path / "p.bvh")
+    assert_one_error(*result, "p.bvh", "disk is full")
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(("code", "words"), [
+    (errno.EROFS, ["--out", "read-only", "choose another folder"]),
+    (errno.EACCES, ["--out", "permission denied"]),
+    (errno.EPERM, ["--out", "may not be changed"]),
+])
+def test_a_folder_that_refuses_files_is_refused_before_any_work(tmp_path, monkeypatch, capsys,
+                                                                 code, words):
+    refuse_files(monkeypatch, code)
+    result = run(capsys, "generate", "--seconds", "1", "-o", tmp_path / "w.bvh")
+    assert_one_error(*result, str(tmp_path), *words)
+    assert list(tmp_path.iterdir()) == []
+
+
+def _folder_cases(clip: Path, index: Path, folder: Path) -> list[list[object]]:
+    return [
+        ["generate", "--seconds", "1", "-o", folder],
+        ["generate", "--seconds", "1", "-o", folder / "a.bvh", "--preview", folder],
+        ["transfer", clip, "--style", "proud", "--index", index, "-o", folder],
+        ["reconstruct", clip, "-o", folder],
+        ["preview", clip, "-o", folder],
+        ["features", clip, "-o", folder],
+    ]
+
+
+@pytest.mark.parametrize("case", range(6))
+def test_a_folder_named_as_the_output_is_one_error(tmp_path, capsys, clip, index, case):
+    folder = tmp_path / "taken.gif"
+    folder.mkdir()
+    args = _folder_cases(clip, index, folder)[case]
+    assert_one_error(*run(capsys, *args), str(folder), "that is a folder", "name a file")
+    assert [p.name for p in tmp_path.iterdir()] == ["taken.gif"]
+    assert list(folder.iterdir()) == []
+
+
+def test_a_file_named_as_the_report_folder_is_one_error(tmp_path, capsys):
+    taken = tmp_path / "report"
+    taken.write_text("mine")
+    result = run(capsys, "evaluate", "--model", tmp_path, "--out", taken / "sub")
+    assert_one_error(*result, "--out", "is a file, not a folder")
+    assert taken.read_text() == "mine"
+
+
+def test_huge_weights_are_normalized_like_small_ones_in_generate(tmp_path, capsys):
+    huge, plain = tmp_path / "huge.bvh", tmp_path / "plain.bvh"
+    for out, emotion in ((huge, "happy=1e308,sad=1e308"), (plain, "happy=1,sad=1")):
+        code, _, err = run(capsys, "generate", "--seconds", "1", "-e", emotion, "-o", out)
+        assert code == 0, err
+    assert huge.read_bytes() == plain.read_bytes()
+
+
+def test_huge_weights_are_normalized_like_small_ones_in_transfer(tmp_path, capsys, index,
+                                                                  clip):
+    huge, plain = tmp_path / "huge.bvh", tmp_path / "plain.bvh"
+    lines = []
+    for out, style in ((huge, "proud=1e308,sad=1e308"), (plain, "proud=1,sad=1")):
+        code, stdout, err = run(capsys, "transfer", clip, "--style", style, "--index", index,
+                                "-o", out)
+        assert code == 0, err
+        lines.append(stdout)
+    assert huge.read_bytes() == plain.read_bytes()
+    assert "in style proud=0.5,sad=0.5;" in lines[0]
+
+
+@pytest.mark.parametrize("weights", ["happy=1e309,sad=1", "happy=inf", "happy=nan",
+                                     "happy=0,sad=0", "happy=-1e308,sad=1e308"])
+def test_weights_not_finite_or_summing_to_zero_are_one_error_everywhere(tmp_path, capsys,
+                                                                        index, clip, weights):
+    result = run(capsys, "generate", "--seconds", "1", "-e", weights, "-o", tmp_path / "w.bvh")
+    assert_one_error(*result)
+    style = weights.replace("happy", "proud").replace("sad", "neutral")
+    result = run(capsys, "transfer", clip, "--style", style, "--index", index, "-o",
+                 tmp_path / "t.bvh")
+    assert_one_error(*result, "--style")
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("model", ["gait", "fcrbm"])
+@pytest.mark.parametrize("seconds", ["1e6", "inf", "-inf", "1e308"])
+def test_lengths_beyond_the_limit_are_one_error(tmp_path, capsys, model, seconds):
+    result = run(capsys, "generate", "--model", model, "--seconds", seconds, "-o",
+                 tmp_path / "w.bvh")
+    assert_one_error(*result, "--seconds")
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.data
+@pytest.mark.parametrize("seconds", ["1e6", "inf"])
+def test_lengths_beyond_the_limit_are_one_error_for_lgb(tmp_path, capsys, bandai1_dir,
+                                                        seconds):
+    result = run(capsys, "generate", "--model", "lgb", "--seconds", seconds, "-o",
+                 tmp_path / "w.bvh")
+    assert_one_error(*result, "--seconds")
+    assert list(tmp_path.iterdir()) == []

@@ -1,0 +1,270 @@
+"""The BVH reader under hostile input: every mutant of the fuzz corpus is a BVHError or a
+plausible motion, fast and small; a pipe is refused at once; the CLI prints one line."""
+
+from __future__ import annotations
+
+import os
+import sys
+import threading
+import time
+import tracemalloc
+from pathlib import Path
+
+import numpy as np
+import pytest
+from bvh_mutants import base_motion, deep_chain, mutants
+
+from emotive.cli import main
+from emotive.errors import BVHError
+from emotive.io import bvh_limits as limits
+from emotive.io.bvh import read_bvh, write_bvh
+
+#: Per-mutant budgets: far above what a mutant takes (under 0.3 s, under 12 MB traced).
+SECONDS_PER_MUTANT = 2.0
+PEAK_BYTES_PER_MUTANT = 200 * 2**20
+
+
+def assert_plausible(motion) -> None:
+    """A motion within every limit of :mod:`emotive.io.bvh_limits`."""
+    sk = motion.skeleton
+    assert limits.MIN_FPS <= motion.fps <= limits.MAX_FPS
+    assert sk.num_joints <= limits.MAX_JOINTS and motion.num_frames <= limits.MAX_FRAMES
+    for arr in (motion.rotations, motion.positions, sk.offsets, sk.end_site_offsets):
+        assert np.isfinite(arr).all()
+    for arr in (motion.positions, sk.offsets, sk.end_site_offsets):
+        assert np.abs(arr).max(initial=0.0) <= limits.MAX_LENGTH_M
+    np.testing.assert_allclose(np.linalg.norm(motion.rotations, axis=-1), 1.0, atol=1e-9)
+    assert motion.metadata["file_unit"] in limits.UNITS
+
+
+def test_corpus_is_large_and_deterministic():
+    corpus = mutants()
+    assert len(corpus) >= 2000
+    assert len({name for name, _ in corpus}) == len(corpus)
+    assert corpus[:50] == mutants()[:50]
+
+
+def test_every_mutant_is_a_bvh_error_or_a_plausible_motion(tmp_path):
+    outcomes: dict[str, int] = {"error": 0, "read": 0}
+    slow, big, crashes = [], [], []
+    tracemalloc.start()
+    try:
+        for name, data in mutants():
+            path = tmp_path / f"{name}.bvh"
+            path.write_bytes(data)
+            tracemalloc.reset_peak()
+            start = time.perf_counter()
+            try:
+                motion = read_bvh(path)
+            except BVHError as exc:
+                assert "\n" not in str(exc) and str(path) in str(exc), (name, str(exc))
+                outcomes["error"] += 1
+            except Exception as exc:
+                crashes.append(f"{name}: {type(exc).__name__}: {exc}"[:300])
+            else:
+                assert_plausible(motion)
+                outcomes["read"] += 1
+            seconds = time.perf_counter() - start
+            peak = tracemalloc.get_traced_memory()[1]
+            if seconds > SECONDS_PER_MUTANT:
+                slow.append((name, seconds))
+            if peak > PEAK_BYTES_PER_MUTANT:
+                big.append((name, peak))
+            path.unlink()
+    finally:
+        tracemalloc.stop()
+    assert crashes == []
+    assert slow == [] and big == []
+    # The base file and the harmless mutants (CRLF, BOM, tabs...) are read.
+    assert outcomes["read"] > 100 and outcomes["error"] > 1500, outcomes
+
+
+@pytest.mark.parametrize(("value", "words"), [
+    ("1e-310", "between 0.001 and 1 s"), ("1e-9", "between 0.001 and 1 s"),
+    ("1e6", "between 0.001 and 1 s"), ("1e308", "between 0.001 and 1 s"),
+    ("0.0009", "1-1000 frames per second"), ("1.01", "fix the frame time"),
+])
+def test_implausible_frame_times_are_refused(tmp_path, value, words):
+    path = write_bvh(base_motion(), tmp_path / "clip.bvh")
+    text = path.read_text().replace("Frame Time: 0.0333333333", f"Frame Time: {value}")
+    path.write_text(text)
+    with pytest.raises(BVHError, match=words) as info:
+        read_bvh(path)
+    assert info.value.line == text.splitlines().index(f"Frame Time: {value}") + 1
+
+
+@pytest.mark.parametrize("value", ["0.001", "1"])
+def test_frame_rate_limits_are_inclusive(tmp_path, value):
+    path = write_bvh(base_motion(), tmp_path / "clip.bvh")
+    path.write_text(path.read_text().replace("Frame Time: 0.0333333333", f"Frame Time: {value}"))
+    assert read_bvh(path).fps == 1.0 / float(value)
+
+
+def test_deep_nesting_is_read_without_recursion_up_to_the_joint_limit(tmp_path):
+    path = tmp_path / "deep.bvh"
+    path.write_text(deep_chain(limits.MAX_JOINTS))
+    assert read_bvh(path).skeleton.num_joints == limits.MAX_JOINTS
+    path.write_text(deep_chain(limits.MAX_JOINTS + 1))
+    with pytest.raises(BVHError, match="at most 1024 are read"):
+        read_bvh(path)
+
+
+@pytest.mark.parametrize(("frames", "words"), [
+    ("1000001", "at most 1,000,000 frames"), ("999999", "only 5 follow"),
+])
+def test_frame_count_is_checked_before_allocating(tmp_path, frames, words):
+    path = write_bvh(base_motion(), tmp_path / "clip.bvh")
+    path.write_text(path.read_text().replace("Frames: 5", f"Frames: {frames}"))
+    tracemalloc.start()
+    try:
+        with pytest.raises(BVHError, match=words):
+            read_bvh(path)
+        assert tracemalloc.get_traced_memory()[1] < 20 * 2**20
+    finally:
+        tracemalloc.stop()
+
+
+def test_values_array_size_is_guarded():
+    assert limits.size_problem(1000, 120, 20) is None
+    assert "values" in limits.size_problem(600_000, 6 * 1024, 1024)
+
+
+@pytest.mark.parametrize(("scale", "words"), [("1e6", "joint offsets reach"),
+                                              ("1e306", "at most 1000 m")])
+def test_huge_offsets_are_refused(tmp_path, scale, words):
+    path = write_bvh(base_motion(), tmp_path / "clip.bvh")
+    path.write_text(path.read_text().replace("OFFSET 0 95 0", f"OFFSET 0 {scale} 0"))
+    with pytest.raises(BVHError, match=words):
+        read_bvh(path)
+
+
+def test_huge_positions_and_angles_are_refused(tmp_path):
+    path = write_bvh(base_motion(), tmp_path / "clip.bvh")
+    lines = path.read_text().splitlines()
+    good = list(lines)
+    row = lines.index("Frame Time: 0.0333333333") + 2
+    values = lines[row].split()
+    lines[row] = " ".join(["1e7", *values[1:]])
+    path.write_text("\n".join(lines) + "\n")
+    with pytest.raises(BVHError, match="position channels reach 1e"):
+        read_bvh(path)
+    good[row] = " ".join([*values[:3], "1e9", *values[4:]])
+    path.write_text("\n".join(good) + "\n")
+    with pytest.raises(BVHError, match="rotation of 1e"):
+        read_bvh(path)
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="named pipes need POSIX")
+def test_a_named_pipe_is_refused_at_once(tmp_path):
+    fifo = tmp_path / "pipe.bvh"
+    os.mkfifo(fifo)
+    result: list[BaseException | None] = []
+
+    def read() -> None:
+        try:
+            read_bvh(fifo)
+        except BaseException as exc:
+            result.append(exc)
+        else:
+            result.append(None)
+
+    worker = threading.Thread(target=read, daemon=True)
+    worker.start()
+    worker.join(5.0)
+    if worker.is_alive():
+        # Unblock the reader so the test process can end, then fail.
+        with open(fifo, "w"):
+            pass
+        pytest.fail("read_bvh blocked on a named pipe")
+    assert isinstance(result[0], BVHError) and "not a regular file" in str(result[0])
+
+
+def test_a_device_is_refused(tmp_path):
+    if not Path("/dev/zero").exists():
+        pytest.skip("no /dev/zero")
+    with pytest.raises(BVHError, match="not a regular file"):
+        read_bvh("/dev/zero")
+
+
+class TestUnits:
+    @pytest.mark.parametrize("unit", sorted(limits.UNITS))
+    def test_each_unit_is_detected_from_the_height(self, tmp_path, unit):
+        motion = base_motion()
+        back = read_bvh(write_bvh(motion, tmp_path / "clip.bvh", unit=unit))
+        assert back.metadata["file_unit"] == unit
+        np.testing.assert_allclose(back.skeleton.offsets, motion.skeleton.offsets, atol=1e-6)
+
+    def test_millimetre_file_is_not_a_giant(self, tmp_path):
+        back = read_bvh(write_bvh(base_motion(), tmp_path / "clip.bvh", unit="mm"))
+        height = limits.figure_height(back.skeleton.offsets, back.skeleton.parents,
+                                      back.skeleton.end_site_parents,
+                                      back.skeleton.end_site_offsets)
+        assert 1.2 <= height <= 2.2
+
+    @pytest.mark.parametrize("forced", ["mm", "m", "in"])
+    def test_a_file_read_with_a_forced_unit_re_reads_the_same(self, tmp_path, forced):
+        path = write_bvh(base_motion(), tmp_path / "clip.bvh", unit="cm")
+        forced_motion = read_bvh(path, unit=forced)
+        again = read_bvh(write_bvh(forced_motion, tmp_path / "again.bvh"))
+        assert again.skeleton.same_as(forced_motion.skeleton)
+        np.testing.assert_allclose(again.positions, forced_motion.positions, atol=1e-9)
+
+    def test_detection_gap_between_inches_and_centimetres_goes_to_centimetres(self):
+        assert limits.detect_unit(100.0) == "cm"
+        assert limits.detect_unit(70.0) == "in"
+        assert limits.detect_unit(1.7) == "m" and limits.detect_unit(1700.0) == "mm"
+        assert limits.detect_unit(0.0) == "m"
+
+
+ZERO_FRAMES = "MOTION\nFrames: 0\nFrame Time: 0.0333333\n"
+
+
+def test_every_bandai_clip_keeps_centimetres(bandai1_dir, bandai2_dir, tmp_path):
+    header = tmp_path / "header.bvh"
+    for folder in (bandai1_dir, bandai2_dir):
+        for path in sorted((folder / "data").glob("*.bvh")):
+            text = path.read_text()
+            # The hierarchy alone decides the unit: read it without the frames.
+            header.write_text(text[: text.index("MOTION")] + ZERO_FRAMES)
+            motion = read_bvh(header)
+            sk = motion.skeleton
+            assert motion.metadata["file_unit"] == "cm", path.name
+            height_m = limits.figure_height(
+                sk.offsets, sk.parents, sk.end_site_parents, sk.end_site_offsets
+            )
+            assert limits.detect_unit(height_m / limits.UNITS["mm"]) == "mm", path.name
+            assert limits.detect_unit(height_m / limits.UNITS["in"]) == "in", path.name
+
+
+def _cli(monkeypatch, capsys, *args) -> tuple[int, str, str]:
+    monkeypatch.setattr(sys, "argv", ["emotive", *map(str, args)])
+    monkeypatch.setenv("COLUMNS", "120")
+    with pytest.raises(SystemExit) as exc:
+        main()
+    out = capsys.readouterr()
+    return exc.value.code, out.out, out.err
+
+
+CLI_SAMPLE = [m for n, m in enumerate(mutants()) if n % 73 == 0 or m[0].startswith("frame_time")]
+
+
+@pytest.mark.parametrize("command", ["info", "features", "classify"])
+def test_cli_mutants_give_one_error_line_or_succeed(monkeypatch, capsys, tmp_path, command):
+    monkeypatch.chdir(tmp_path)
+    failed = succeeded = 0
+    for name, data in CLI_SAMPLE[:: 3 if command == "classify" else 1]:
+        path = tmp_path / f"{name}.bvh"
+        path.write_bytes(data)
+        extra = ["-o", tmp_path / "features.csv"] if command == "features" else []
+        code, out, err = _cli(monkeypatch, capsys, command, path, *extra)
+        assert "Traceback" not in err + out, (name, err)
+        if code == 0:
+            assert_plausible(read_bvh(path))
+            succeeded += 1
+        else:
+            failed += 1
+            assert code == 2 and err.startswith("error: ") and err.count("\n") == 1, (name, err)
+            assert not (tmp_path / "features.csv").exists(), name
+        for made in (path, tmp_path / "features.csv"):
+            made.unlink(missing_ok=True)
+    assert failed > 0 and succeeded > 0
