@@ -4,12 +4,9 @@ from __future__ import annotations
 
 import errno
 
-import errno
-
 import numpy as np
 import pytest
 
-from emotive.errors import OutputError
 from emotive.errors import OutputError
 from emotive.features.affective import AFFECTIVE_FEATURE_KINDS, AFFECTIVE_FEATURE_NAMES
 from emotive.features.movement import MOVEMENT_FEATURE_NAMES
