@@ -414,8 +414,10 @@ class EmotionClassifier:
             "std": torch.from_numpy(self.std),
             "metrics": json.dumps(self.metrics),
         }
-        with atomic_output(path) as tmp:
-            torch.save(payload, tmp)
+        # An open file makes torch raise OSError (ENOSPC) on a full disk, which atomic_output
+        # turns into one OutputError; a path would give torch's multi-line RuntimeError.
+        with atomic_output(path) as tmp, open(tmp, "wb") as fh:
+            torch.save(payload, fh)
         return Path(path)
 
     @classmethod
