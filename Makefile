@@ -5,6 +5,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 THREEJS := tests/io/threejs
+GLTFJS := tests/io/gltf_js
 CLIP := dataset-1_walk_happy_001.bvh
 
 .PHONY: install test lint demo bench docs clean
@@ -24,10 +25,15 @@ $(THREEJS)/node_modules/.package-lock.json: $(THREEJS)/package-lock.json
 	@if command -v npm >/dev/null; then npm ci --prefix $(THREEJS) --no-audit --no-fund --silent; \
 	else echo "npm not found: the three.js import check will be skipped"; fi
 
+$(GLTFJS)/node_modules/.package-lock.json: $(GLTFJS)/package-lock.json
+	@if command -v npm >/dev/null; then npm ci --prefix $(GLTFJS) --no-audit --no-fund --silent; \
+	else echo "npm not found: the glTF import checks will be skipped"; fi
+
 lint: install
 	$(BIN)/ruff check src tests bench
 
-test: install lint $(THREEJS)/node_modules/.package-lock.json
+test: install lint $(THREEJS)/node_modules/.package-lock.json \
+		$(GLTFJS)/node_modules/.package-lock.json
 	$(BIN)/python -m pytest
 
 demo: install
@@ -40,6 +46,7 @@ demo: install
 		--seconds 20 --out demo_out/angry_to_happy.bvh --preview demo_out/angry_to_happy.mp4
 	$(BIN)/emotive generate --model fcrbm --emotion "valence=-0.8,arousal=-0.5" --seconds 10 \
 		--out demo_out/fcrbm_low.bvh --preview demo_out/fcrbm_low.mp4
+	$(BIN)/emotive generate --emotion happy --path circle --seconds 10 --out demo_out/walk_happy.glb
 	$(BIN)/emotive data fetch bandai-namco-1
 	$(BIN)/emotive features "$$($(BIN)/emotive data path bandai-namco-1)/data/$(CLIP)" \
 		--out demo_out/features.csv --plot demo_out/features.png
@@ -54,4 +61,4 @@ docs: install
 	$(BIN)/mkdocs build --strict --site-dir site
 
 clean:
-	rm -rf $(VENV) demo_out site $(THREEJS)/node_modules
+	rm -rf $(VENV) demo_out site $(THREEJS)/node_modules $(GLTFJS)/node_modules

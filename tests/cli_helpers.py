@@ -3,11 +3,25 @@ nothing, write a BVH file with a NaN frame."""
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Callable
 from pathlib import Path
 
+import pytest
 import typer
 from typer.testing import CliRunner
+
+from emotive.cli import main
+
+
+def run_main(monkeypatch, capsys, *args) -> tuple[int, str, str]:
+    """Run the console entry point in-process; return exit code, stdout and stderr."""
+    monkeypatch.setattr(sys, "argv", ["emotive", *map(str, args)])
+    monkeypatch.setenv("COLUMNS", "200")
+    with pytest.raises(SystemExit) as exc:
+        main()
+    out = capsys.readouterr()
+    return exc.value.code, out.out, out.err
 
 
 def invoke_command(name: str, command: Callable, *args: object):

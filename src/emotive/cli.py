@@ -1,9 +1,9 @@
 """The ``emotive`` command line: one entry point, verb-first sub-commands.
 
-``generate``, ``train``, ``transfer``, ``reconstruct``, ``evaluate``, ``models``, ``info``,
-``features``, ``preview``, ``classify`` and ``data``; each lives in :mod:`emotive.commands`
-and this module registers them. The old spellings ``fcrbm train|generate`` and ``resample``
-work for one release, with one deprecation line.
+``generate``, ``train``, ``transfer``, ``reconstruct``, ``retarget``, ``evaluate``, ``models``,
+``info``, ``features``, ``preview``, ``classify`` and ``data``; each lives in
+:mod:`emotive.commands` and this module registers them. The old spellings
+``fcrbm train|generate`` and ``resample`` work for one release, with one deprecation line.
 
 :func:`main` runs the app without click's own error handling, so that every invalid value,
 click's usage and range errors as well as every :class:`~emotive.errors.EmotiveError`, prints
@@ -31,6 +31,7 @@ from emotive.commands.models import models
 from emotive.commands.reconstruct import reconstruct
 from emotive.commands.render import preview
 from emotive.commands.resample import resample
+from emotive.commands.retarget import retarget
 from emotive.commands.train import app as train_app
 from emotive.commands.transfer import transfer
 from emotive.errors import EmotiveError
@@ -65,6 +66,7 @@ app.command("generate")(generate)
 app.add_typer(train_app, name="train")
 app.command("transfer")(transfer)
 app.command("reconstruct")(reconstruct)
+app.command("retarget")(retarget)
 app.command("evaluate")(evaluate)
 app.command("models")(models)
 app.command("info")(info)

@@ -8,17 +8,7 @@ import sys
 
 import pytest
 
-from emotive.cli import main
-
-
-def run_cli(monkeypatch, capsys, *args) -> tuple[int, str, str]:
-    """Run the console entry point in-process; return exit code, stdout and stderr."""
-    monkeypatch.setattr(sys, "argv", ["emotive", *map(str, args)])
-    monkeypatch.setenv("COLUMNS", "120")
-    with pytest.raises(SystemExit) as exc:
-        main()
-    out = capsys.readouterr()
-    return exc.value.code, out.out, out.err
+from cli_helpers import run_main
 
 
 @pytest.mark.parametrize(("args", "words"), [
@@ -40,7 +30,7 @@ def run_cli(monkeypatch, capsys, *args) -> tuple[int, str, str]:
 def test_invalid_values_are_one_error_line_with_exit_code_2(monkeypatch, capsys, tmp_path,
                                                              args, words):
     monkeypatch.chdir(tmp_path)
-    code, out, err = run_cli(monkeypatch, capsys, *args)
+    code, out, err = run_main(monkeypatch, capsys, *args)
     assert code == 2 and out == ""
     assert err.startswith("error: ") and err.count("\n") == 1, err
     assert all(w in err for w in words), err
@@ -56,7 +46,7 @@ def test_invalid_values_are_one_error_line_with_exit_code_2(monkeypatch, capsys,
 def test_deprecated_spellings_print_one_line_and_do_the_same(monkeypatch, capsys, tmp_path,
                                                               old, new):
     monkeypatch.chdir(tmp_path)
-    code, _, err = run_cli(monkeypatch, capsys, *old)
+    code, _, err = run_main(monkeypatch, capsys, *old)
     lines = err.strip().splitlines()
     if old[0] == "resample":  # a range error comes before the command runs
         assert code == 2 and len(lines) == 1 and "--seconds" in lines[0]
@@ -68,11 +58,11 @@ def test_deprecated_spellings_print_one_line_and_do_the_same(monkeypatch, capsys
 
 def test_the_deprecated_fcrbm_generate_makes_the_new_commands_file(monkeypatch, capsys,
                                                                    tmp_path):
-    code, _, err = run_cli(monkeypatch, capsys, "fcrbm", "generate", "--valence", "0.5",
+    code, _, err = run_main(monkeypatch, capsys, "fcrbm", "generate", "--valence", "0.5",
                            "--arousal", "-0.5", "--seconds", "0.5", "-o", tmp_path / "old.bvh")
     assert code == 0, err
     assert err.count("deprecated:") == 1
-    code, _, err = run_cli(monkeypatch, capsys, "generate", "--model", "fcrbm", "--emotion",
+    code, _, err = run_main(monkeypatch, capsys, "generate", "--model", "fcrbm", "--emotion",
                            "valence=0.5,arousal=-0.5", "--seconds", "0.5", "-o",
                            tmp_path / "new.bvh")
     assert code == 0 and "deprecated:" not in err
@@ -80,13 +70,13 @@ def test_the_deprecated_fcrbm_generate_makes_the_new_commands_file(monkeypatch, 
 
 
 def test_help_lists_the_verbs_and_hides_the_old_spellings(monkeypatch, capsys):
-    code, out, _ = run_cli(monkeypatch, capsys, "--help")
+    code, out, _ = run_main(monkeypatch, capsys, "--help")
     assert code == 0
     for verb in ("generate", "train", "transfer", "reconstruct", "evaluate", "models", "info",
                  "features", "preview", "classify", "data"):
         assert verb in out
     assert "resample" not in out and "fcrbm " not in out
-    code, out, _ = run_cli(monkeypatch, capsys, "train", "--help")
+    code, out, _ = run_main(monkeypatch, capsys, "train", "--help")
     assert code == 0 and all(m in out for m in ("gait", "quaternet", "fcrbm", "classifier"))
 
 

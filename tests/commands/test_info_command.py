@@ -88,8 +88,9 @@ class TestInfo:
         assert "map: bandai" in out and "Toes_L/end" in out and "missing" not in out
 
     def test_unlabelled_clip_with_missing_roles(self, monkeypatch, capsys, tmp_path):
+        # Without --roles the rig's shape would name the head; the Bandai names lack it.
         path = write_bvh(make_walk({"Head": "Kopf"}), tmp_path / "walk.bvh")
-        code, out, _ = run_cli(monkeypatch, capsys, "info", path)
+        code, out, _ = run_cli(monkeypatch, capsys, "info", path, "--roles", "bandai")
         assert code == 0
         assert "labels: none" in out
         assert "missing" in out and "roles not resolved" in out and "head" in out
@@ -135,7 +136,9 @@ class TestFeatures:
     def test_roles_file(self, monkeypatch, capsys, tmp_path):
         path = write_bvh(make_walk({"Head": "Kopf"}), tmp_path / "walk.bvh")
         out = tmp_path / "f.csv"
-        code, _, err = run_cli(monkeypatch, capsys, "features", path, "--out", out)
+        code, _, err = run_cli(
+            monkeypatch, capsys, "features", path, "--out", out, "--roles", "bandai"
+        )
         assert code == 2 and "head" in err and "--roles" in err and not out.exists()
         roles = tmp_path / "roles.json"
         from emotive.core.roles import BANDAI

@@ -93,16 +93,22 @@ class TestResolveRoles:
         assert roles.index["chest"] == roles.index["spine"]
 
     def test_user_json_map(self, tmp_path):
-        renamed = {old: f"j_{old.lower()}" for old, _ in CMU_JOINTS}
+        # Names no family knows (a prefix shared by every joint would be ignored), on a rest
+        # pose that does not tell left from right: neither names nor shape resolve it.
+        renamed = {old: f"bone{k:02d}" for k, (old, _) in enumerate(CMU_JOINTS)}
         sk = build([(renamed[n], renamed[p] if p else None) for n, p in CMU_JOINTS])
-        mapping = {role: renamed[CMU[role]] for role in ROLES if CMU[role] in renamed}
+        mapping = {}
+        for role in ROLES:
+            joint, _, end = CMU[role].partition("/")
+            if joint in renamed:
+                mapping[role] = renamed[joint] + ("/end" if end else "")
         path = tmp_path / "roles.json"
         path.write_text(json.dumps(mapping))
         with pytest.raises(RigError):
             resolve_roles(sk)
         roles = resolve_roles(sk, path)
         assert roles.map_name == str(path)
-        assert roles.names["l_wrist"] == "j_lefthand"
+        assert roles.names["l_wrist"] == renamed["LeftHand"]
         assert resolve_roles(sk, mapping).map_name == "user"
 
     def test_missing_roles_listed(self):

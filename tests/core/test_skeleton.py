@@ -78,3 +78,10 @@ class TestSkeleton:
     def test_unknown_joint(self):
         with pytest.raises(RigError, match="'Tail' is not in the rig"):
             make().index("Tail")
+
+
+def test_between_lists_the_joints_on_the_path_from_an_ancestor():
+    sk = Skeleton(("a", "b", "c", "d", "e"), np.array([-1, 0, 1, 2, 0]), np.zeros((5, 3)))
+    assert sk.between(0, 3) == [1, 2]
+    assert sk.between(2, 3) == []
+    assert sk.between(4, 3) is None and sk.between(3, 0) is None

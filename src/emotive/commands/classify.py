@@ -11,7 +11,7 @@ from typing import Annotated
 
 import typer
 
-from emotive.commands.options import RolesOpt, positive
+from emotive.commands.options import RolesOpt, UnitOpt, positive, read_input
 
 ModelOpt = Annotated[
     Path | None,
@@ -24,42 +24,61 @@ def classify(
     file: Annotated[Path, typer.Argument(help="BVH file.", show_default=False)],
     model: ModelOpt = None,
     window: Annotated[
-        float, typer.Option(help="Seconds per judged window.", callback=positive)
+        float, typer.Option(help="Seconds per judged window (at least 0.8).", callback=positive)
     ] = 4.0,
     hop: Annotated[
         float, typer.Option(help="Seconds between windows.", callback=positive)
     ] = 1.0,
     roles: RolesOpt = None,
+    unit: UnitOpt = "auto",
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON instead of a table.")] = False,
 ) -> None:
-    """Print the perceived emotion of a clip over time (probabilities per window)."""
+    """Print the perceived emotion of a clip over time (probabilities per window).
+
+    A window whose motion lies outside what the classifier was trained on is marked
+    "unsure"; so is the clip when most of its windows are.
+    """
     from rich.console import Console
     from rich.table import Table
 
     from emotive.eval.classifier import EmotionClassifier, load_default_classifier
-    from emotive.io.bvh import read_bvh
 
     clf = EmotionClassifier.load(model) if model is not None else load_default_classifier()
-    motion = read_bvh(file)
-    times, prob = clf.classify(motion, window_seconds=window, hop_seconds=hop, role_map=roles)
-    mean = prob.mean(0)
+    motion = read_input(file, unit)
+    judged = clf.judge(motion, window_seconds=window, hop_seconds=hop, role_map=roles)
+    mean = judged.probabilities.mean(0)
+    overall = "unsure" if judged.clip_unsure else clf.labels[int(mean.argmax())]
     if as_json:
         typer.echo(json.dumps({
             "file": str(file), "labels": list(clf.labels),
             "windows": [{"t": float(t), "emotion": dict(zip(clf.labels, map(float, p),
-                                                             strict=True))}
-                        for t, p in zip(times, prob, strict=True)],
+                                                             strict=True)),
+                         "valence": float(va[0]), "arousal": float(va[1]),
+                         "unsure": bool(u), "distance": float(d), "perceived": label}
+                        for t, p, va, u, d, label in zip(
+                            judged.times, judged.probabilities, judged.valence_arousal,
+                            judged.unsure, judged.distance, judged.perceived, strict=True)],
             "mean": dict(zip(clf.labels, map(float, mean), strict=True)),
-            "perceived": clf.labels[int(mean.argmax())],
+            "unsure": judged.clip_unsure,
+            "perceived": overall,
         }, indent=2))
         return
     table = Table(title=f"perceived emotion of {file.name} ({window:g} s windows)")
     table.add_column("time (s)", justify="right")
     for label in clf.labels:
         table.add_column(label, justify="right")
+    table.add_column("valence", justify="right")
+    table.add_column("arousal", justify="right")
     table.add_column("perceived")
-    for t, p in zip(times, prob, strict=True):
-        table.add_row(f"{t:.1f}", *(f"{v:.2f}" for v in p), clf.labels[int(p.argmax())])
-    table.add_row("mean", *(f"{v:.2f}" for v in mean), clf.labels[int(mean.argmax())],
-                  style="bold")
+    for t, p, va, label in zip(judged.times, judged.probabilities, judged.valence_arousal,
+                               judged.perceived, strict=True):
+        table.add_row(f"{t:.1f}", *(f"{v:.2f}" for v in p), f"{va[0]:+.2f}", f"{va[1]:+.2f}",
+                      label)
+    va = judged.valence_arousal.mean(0)
+    table.add_row("mean", *(f"{v:.2f}" for v in mean), f"{va[0]:+.2f}", f"{va[1]:+.2f}",
+                  overall, style="bold")
     Console().print(table)
+    if judged.clip_unsure:
+        Console().print(f"unsure: {int(judged.unsure.sum())} of {len(judged.unsure)} windows "
+                        "lie outside the motion the classifier was trained on; its "
+                        "probabilities there are not to be trusted")

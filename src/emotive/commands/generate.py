@@ -8,13 +8,19 @@ labels, the model makes a :class:`~emotive.models.api.Generated` and
 :func:`emotive.render.outputs.write_generated` writes it. Each model-specific flag is defined
 once here and passed through; a flag the chosen model does not take is an error naming it.
 
+Any rig in and out (:mod:`emotive.retarget`): with ``--rig RIG.bvh`` the generated motion is
+retargeted onto that rig before anything is written, so the BVH, the NPZ and the preview all
+show the rig (its joint names, bone lengths, channel order and unit; the ground path is
+scaled by the leg-length ratio, as the root motion is). A ``--primer`` on another rig than
+the model's is retargeted onto the model's rig first.
+
 Heavy modules are imported inside the command so that ``emotive --help`` stays fast.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
@@ -25,18 +31,83 @@ from emotive.commands.options import (
     PrimerOpt,
     SecondsOpt,
     SeedOpt,
+    UnitOpt,
     out_option,
+    read_input,
 )
+
+if TYPE_CHECKING:
+    from emotive.core.motion import Motion
+    from emotive.core.skeleton import Skeleton
+    from emotive.models.api import Generated
 
 #: The flag of each model option (registry name -> command line).
 FLAGS = {"raw": "--raw", "gibbs": "--gibbs", "root": "--root", "workers": "--workers",
          "dataset": "--dataset", "fps": "--fps"}
 
 
+def model_rig(generator: Any) -> Skeleton | None:
+    """The rig a generator's primers must be on, or ``None`` where it does not say.
+
+    The gait network keeps its rig with its animation controls, the FCRBM with its frame
+    codec; the LGB takes no primer.
+    """
+    model = getattr(generator, "model", None)
+    for holder in ("controls", "codec"):
+        rig = getattr(getattr(model, holder, None), "skeleton", None)
+        if rig is not None:
+            return rig
+    return None
+
+
+def primer_on_rig(primer: Motion, rig: Skeleton | None, roles: str | None = None) -> Motion:
+    """The primer as it is when on ``rig`` (or when the rig is unknown), else retargeted.
+
+    Args:
+        primer: the ``--primer`` clip.
+        rig: the model's rig (:func:`model_rig`).
+        roles: the primer's role map (``--primer-roles``).
+
+    Raises:
+        RigError: the primer is on another rig and lacks roles (naming them and the flag).
+    """
+    import numpy as np
+
+    from emotive.errors import RigError
+    from emotive.retarget import resolve_rig, retarget
+
+    if rig is None or (primer.skeleton.names == rig.names
+                       and np.array_equal(primer.skeleton.parents, rig.parents)):
+        return primer
+    try:
+        resolve_rig(primer.skeleton, roles, "primer", "--primer-roles")
+    except RigError as exc:
+        name = primer.metadata.get("source", primer.metadata.get("name", "the primer"))
+        raise RigError(f"--primer {name} is on another rig than the model's and cannot be "
+                       f"retargeted onto it: {exc}") from None
+    return retarget(primer, rig, source_roles=roles)
+
+
+def on_rig(generated: Generated, rig: Motion, rig_roles: str | None) -> Generated:
+    """A model's output retargeted onto ``rig``, its ground path scaled like its root."""
+    from dataclasses import replace
+
+    from emotive.paths import GroundPath
+    from emotive.retarget import retarget
+
+    motion = retarget(generated.motion, rig, target_roles=rig_roles)
+    path = generated.path
+    if path is not None:
+        path = GroundPath.from_polyline(path.points * motion.metadata["leg_scale"],
+                                        path.closed, path.name)
+    return replace(generated, motion=motion, path=path)
+
+
 def run_generate(model: str, out: Path, emotion: str | Path | None, seconds: float,
                  path: str | None = None, npz: Path | None = None, preview: Path | None = None,
                  primer: Path | None = None, seed: int = 0, checkpoint: Path | None = None,
-                 **options: Any) -> None:
+                 unit: str = "auto", rig: Path | None = None, rig_roles: str | None = None,
+                 primer_roles: str | None = None, **options: Any) -> None:
     """The body of ``emotive generate`` (and of its deprecated spellings).
 
     Args:
@@ -48,15 +119,19 @@ def run_generate(model: str, out: Path, emotion: str | Path | None, seconds: flo
         path: ground path (:func:`emotive.paths.load_path`), or ``None`` for the model's own.
         npz: extra NPZ output.
         preview: extra preview output.
-        primer: BVH clip to start from.
+        primer: BVH clip to start from, on any rig (retargeted onto the model's).
         seed: random seed.
         checkpoint: weights instead of the model's default.
+        unit: length unit of the BVH files read (``--unit``).
+        rig: BVH file of the rig to retarget the output onto, or ``None`` for the model's.
+        rig_roles: role map of ``rig`` (see :func:`emotive.core.roles.resolve_roles`).
+        primer_roles: role map of ``primer``, for a primer on another rig than the model's.
         **options: model options; ``None`` means not given.
 
     Raises:
         ModelError: an unknown model, or an option the model does not take.
         RequestError: ``seconds`` beyond the model's limit.
-        EmotiveError: bad emotion, path, primer or output, before anything is written.
+        EmotiveError: bad emotion, path, primer, rig or output, before anything is written.
     """
     import math
 
@@ -89,12 +164,18 @@ def run_generate(model: str, out: Path, emotion: str | Path | None, seconds: flo
 
         ground = load_path(path)
     if primer is not None:
-        from emotive.io.bvh import read_bvh
+        primer_motion = read_input(primer, unit)
+    rig_motion = None
+    if rig is not None:
+        from emotive.retarget import resolve_rig
 
-        primer_motion = read_bvh(primer)
+        rig_motion = read_input(rig, unit)
+        resolve_rig(rig_motion.skeleton, rig_roles, f"--rig {rig}: target", "--rig-roles")
     # The generators step one motion a frame at a time: a second thread only adds overhead.
     torch.set_num_threads(1)
     generator = entry.load("generator", weights=checkpoint, **given)
+    if primer_motion is not None:
+        primer_motion = primer_on_rig(primer_motion, model_rig(generator), primer_roles)
     limit = generator.capabilities.max_seconds
     if not (math.isfinite(seconds) and 0 < seconds <= limit):
         from emotive.models.api import RequestError
@@ -110,6 +191,8 @@ def run_generate(model: str, out: Path, emotion: str | Path | None, seconds: flo
     # Progress bars only on a terminal: elsewhere they leave blank lines around the messages.
     bars = console.is_terminal
     generated = generator.generate(request, progress=bars)
+    if rig_motion is not None:
+        generated = on_rig(generated, rig_motion, rig_roles)
     written = write_generated(generated, out, npz=npz, preview=preview, progress=bars)
     if generated.summary:
         console.print(generated.summary, highlight=False)
@@ -118,8 +201,8 @@ def run_generate(model: str, out: Path, emotion: str | Path | None, seconds: flo
 
 
 def generate(
-    out: Annotated[Path, out_option("Output file: .bvh (the model's rig) or .npz (joint "
-                                    "positions and per-frame emotion).")],
+    out: Annotated[Path, out_option("Output file: .bvh (the model's rig, or --rig) or .npz "
+                                    "(joint positions and per-frame emotion).")],
     model: Annotated[
         str, typer.Option("--model", "-m", help="Generator: gait (emotive gait network), "
                           "fcrbm (valence/arousal FCRBM) or lgb (end-effector resampling); "
@@ -141,6 +224,24 @@ def generate(
                      show_default=False),
     ] = None,
     primer: PrimerOpt = None,
+    primer_roles: Annotated[
+        str | None,
+        typer.Option("--primer-roles", help="Role map of a --primer on another rig than the "
+                     "model's (it is retargeted onto the model's rig); default: detected.",
+                     show_default=False),
+    ] = None,
+    rig: Annotated[
+        Path | None,
+        typer.Option("--rig", help="BVH file of your character's rig: the motion is "
+                     "retargeted onto it (its joint names, bone lengths, channels and unit).",
+                     show_default=False),
+    ] = None,
+    rig_roles: Annotated[
+        str | None,
+        typer.Option("--rig-roles", help='Role map of --rig: a built-in name or a JSON file '
+                     '{"role": "JointName", ...}; default: detected.', show_default=False),
+    ] = None,
+    unit: UnitOpt = "auto",
     seed: SeedOpt = 0,
     checkpoint: Annotated[
         Path | None,
@@ -186,5 +287,6 @@ def generate(
         raise EmotionError("give --emotion or --emotion-schedule, not both")
     run_generate(model, out, schedule if schedule is not None else emotion, seconds, path=path,
                  npz=npz, preview=preview, primer=primer, seed=seed, checkpoint=checkpoint,
-                 raw=True if raw else None, gibbs=gibbs, root=root, workers=workers,
-                 dataset=dataset, fps=fps)
+                 unit=unit, rig=rig, rig_roles=rig_roles, primer_roles=primer_roles,
+                 raw=True if raw else None,
+                 gibbs=gibbs, root=root, workers=workers, dataset=dataset, fps=fps)

@@ -14,7 +14,7 @@ from rich.console import Console
 from rich.table import Table
 from rich.tree import Tree
 
-from emotive.commands.options import RolesOpt, out_option
+from emotive.commands.options import RolesOpt, UnitOpt, out_option, read_input
 from emotive.errors import EmotiveError
 from emotive.io.atomic import atomic_output
 from emotive.io.outputs import check_output
@@ -27,25 +27,57 @@ FileArg = Annotated[
 ]
 
 
+#: Extra joints listed by name before ``info`` shortens the list.
+EXTRAS_SHOWN = 12
+
+
 def _role_rows(skeleton, role_map: str | None) -> tuple[str, dict[str, str | None], str | None]:
     """Map name, role -> joint (``None`` if missing) and the error text when roles are missing."""
     from emotive.core import roles as R
 
-    name, index, missing = R.match_roles(skeleton, role_map)
-    rows = {r: R.point_name(skeleton, index[r]) if r in index else None for r in R.ROLES}
-    return name, rows, R.missing_roles_message(name, missing) if missing else None
+    try:
+        joint_roles = R.resolve_roles(skeleton, role_map)
+    except EmotiveError as exc:
+        name, index, _ = R.match_roles(skeleton, role_map)
+        rows = {r: R.point_name(skeleton, index[r]) if r in index else None for r in R.ROLES}
+        return name, rows, str(exc)
+    return joint_roles.map_name, dict(joint_roles.names), None
+
+
+def _extras_line(skeleton, rows: dict[str, str | None]) -> str:
+    """``extra joints: N (a, b, ... and M more)``: the joints that play no role."""
+    used = {j.removesuffix("/end") for j in rows.values() if j}
+    extras = [n for n in skeleton.names if n not in used]
+    if not extras:
+        return "extra joints: none"
+    shown = ", ".join(extras[:EXTRAS_SHOWN])
+    more = f" and {len(extras) - EXTRAS_SHOWN} more" if len(extras) > EXTRAS_SHOWN else ""
+    return f"extra joints: {len(extras)} ({shown}{more})"
 
 
 def info(
     file: FileArg,
     roles: RolesOpt = None,
+    unit: UnitOpt = "auto",
+    roles_template: Annotated[
+        bool,
+        typer.Option("--roles-template",
+                     help="Print the rig's role map as JSON (detected joints filled in, missing "
+                     "roles null) to edit and pass back with --roles, and nothing else."),
+    ] = False,
 ) -> None:
-    """Describe a BVH clip: rig, roles, frames, duration and file-name labels."""
+    """Describe a BVH clip: rig family, roles, extra joints, height, unit, frames and labels."""
     from emotive.data.clips import parse_clip_name
-    from emotive.io.bvh import read_bvh
 
-    motion = read_bvh(file)
+    motion = read_input(file, unit)
     sk = motion.skeleton
+    if roles_template:
+        import json
+
+        from emotive.core.roles import role_template
+
+        typer.echo(json.dumps(role_template(sk, roles), indent=2))
+        return
     console = Console()
     console.print(f"[bold]{file}[/bold]")
     console.print(
@@ -79,14 +111,21 @@ def info(
     console.print(tree)
 
     map_name, rows, problem = _role_rows(sk, roles)
+    console.print(f"rig family: [cyan]{map_name}[/cyan]" + (
+        " (from the rig's shape: no family's joint names fit)" if map_name == "topology" else ""))
+    height = motion.metadata.get("height_m")
+    if height is not None:
+        console.print(f"height: {height:.2f} m (standing, from the rig; file unit: "
+                      f"{motion.metadata.get('file_unit', '?')})")
     table = Table(title=f"roles (map: {map_name})")
     table.add_column("role")
     table.add_column("joint")
     for role, joint in rows.items():
         table.add_row(role, joint if joint else "[red]missing[/red]")
     console.print(table)
+    console.print(_extras_line(sk, rows), markup=False)
     if problem:
-        console.print(f"[red]roles not resolved:[/red] {problem}")
+        console.print(f"[red]roles not resolved:[/red] {problem}", markup=True)
 
 
 def features(
@@ -98,6 +137,7 @@ def features(
                      show_default=False),
     ] = None,
     roles: RolesOpt = None,
+    unit: UnitOpt = "auto",
 ) -> None:
     """Write per-frame affective and movement features and foot contacts of a clip to CSV.
 
@@ -114,7 +154,6 @@ def features(
     )
     from emotive.features.contacts import CONTACT_NAMES, foot_contacts
     from emotive.features.movement import MOVEMENT_FEATURE_NAMES, movement_features
-    from emotive.io.bvh import read_bvh
 
     check_output(out, None, "--out")
     if plot is not None:
@@ -123,7 +162,7 @@ def features(
                 f"--plot {plot}: unknown image type {plot.suffix!r}; use one of {PLOT_SUFFIXES}"
             )
         check_output(plot, PLOT_SUFFIXES, "--plot")
-    motion = read_bvh(file)
+    motion = read_input(file, unit)
     if motion.num_frames == 0:
         raise EmotiveError(f"{file} has no frames: nothing to compute")
     joint_roles = resolve_roles(motion.skeleton, roles)

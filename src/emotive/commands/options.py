@@ -30,6 +30,10 @@ def positive(value: float | None) -> float | None:
     return value
 
 
+#: ``--out`` help of the commands that write a clip on the input's rig.
+ON_INPUT_RIG = "Output on the input's rig: .bvh, or .glb/.gltf with a skinned mannequin."
+
+
 def out_option(what: str) -> Any:
     """``--out``/``-o`` with the command's own description of the file.
 
@@ -40,9 +44,37 @@ def out_option(what: str) -> Any:
 
 RolesOpt = Annotated[
     str | None,
-    typer.Option("--roles", help='Role map of the input rig: "bandai", "cmu" or a JSON file '
-                 '{"role": "JointName", ...}; default: try the built-in maps.',
+    typer.Option("--roles", help="Role map of the input rig: a family (bandai, cmu, mixamo, "
+                 "unreal, unity, vrm, smpl, smplx) or a JSON file "
+                 '{"role": "JointName", ...}; default: detect the family from the joint names, '
+                 "else from the rig's shape. `emotive info FILE --roles-template` prints a map "
+                 "to edit.",
                  show_default=False),
+]
+#: Spellings of ``--unit`` beyond the reader's own names.
+UNIT_ALIASES = {"inch": "in", "inches": "in", "metre": "m", "meter": "m"}
+
+
+def length_unit(value: str) -> str:
+    """Option callback: ``auto`` or a length unit the BVH reader knows (aliases resolved).
+
+    Raises:
+        typer.BadParameter: an unknown unit.
+    """
+    from emotive.io.bvh_limits import UNITS
+
+    unit = UNIT_ALIASES.get(value.lower(), value.lower())
+    if unit != "auto" and unit not in UNITS:
+        raise typer.BadParameter(f"{value!r} is not a length unit; use auto or one of "
+                                 f"{', '.join([*UNITS, *UNIT_ALIASES])}.")
+    return unit
+
+
+UnitOpt = Annotated[
+    str,
+    typer.Option("--unit", callback=length_unit,
+                 help="Length unit of the BVH file(s) read: auto (from the figure's standing "
+                 "height, 1.2-2.2 m), m, cm, mm, in (inch) or cmu (CMU's 1/0.45 inch)."),
 ]
 SeedOpt = Annotated[
     int, typer.Option("--seed", help="Random seed: the same seed gives the same output.")
@@ -70,8 +102,8 @@ EmotionScheduleOpt = Annotated[
 ]
 PrimerOpt = Annotated[
     Path | None,
-    typer.Option("--primer", help="Start from this BVH clip of the model's rig instead of the "
-                 "model's own start.", show_default=False),
+    typer.Option("--primer", help="Start from this BVH clip (any humanoid rig: retargeted onto "
+                 "the model's) instead of the model's own start.", show_default=False),
 ]
 ConfigOpt = Annotated[
     Path, typer.Option("--config", help=r"TOML file with \[model] and \[train] sections.")
@@ -85,6 +117,17 @@ EpochsOpt = Annotated[
     typer.Option("--epochs", help=r"Epochs in all (default: the config's \[train] epochs).",
                  min=1, show_default=False),
 ]
+
+
+def read_input(path: Path, unit: str = "auto"):
+    """Read a BVH file given on the command line in the ``--unit`` the user chose.
+
+    Raises:
+        BVHError: the file cannot be read (see :func:`emotive.io.bvh.read_bvh`).
+    """
+    from emotive.io.bvh import read_bvh
+
+    return read_bvh(path, unit=unit)
 
 
 def deprecated(old: str, new: str) -> None:

@@ -15,7 +15,14 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from emotive.commands.options import PreviewOpt, RolesOpt, out_option
+from emotive.commands.options import (
+    ON_INPUT_RIG,
+    PreviewOpt,
+    RolesOpt,
+    UnitOpt,
+    out_option,
+    read_input,
+)
 
 if TYPE_CHECKING:
     from emotive.ik import IKResult
@@ -64,8 +71,9 @@ def summary(result: IKResult, fps: float, verb: str = "rebuilt") -> str:
 
 def reconstruct(
     input: Annotated[Path, typer.Argument(help="BVH clip to rebuild.", show_default=False)],
-    out: Annotated[Path, out_option("Output .bvh, on the input's rig.")],
+    out: Annotated[Path, out_option(ON_INPUT_RIG)],
     role_map: RolesOpt = None,
+    unit: UnitOpt = "auto",
     preview: PreviewOpt = None,
 ) -> None:
     """Rebuild a clip from its own pelvis, end-effector and elbow trajectories by IK."""
@@ -74,14 +82,14 @@ def reconstruct(
     from emotive.errors import BVHError, RigError
     from emotive.ik import IKError
     from emotive.ik import reconstruct as ik_reconstruct
-    from emotive.io.bvh import read_bvh, write_bvh
+    from emotive.io.motion_files import MOTION_SUFFIXES, write_motion
     from emotive.io.outputs import PREVIEW_SUFFIXES, check_output
     from emotive.render.outputs import write_all
 
-    check_output(out, (".bvh",), "--out")
+    check_output(out, MOTION_SUFFIXES, "--out")
     if preview is not None:
         check_output(preview, PREVIEW_SUFFIXES, "--preview")
-    motion = read_bvh(input)
+    motion = read_input(input, unit)
     if motion.num_frames == 0:
         raise BVHError(
             input,
@@ -97,7 +105,7 @@ def reconstruct(
         raise type(exc)(f"{input}: {exc}") from None
     # The rebuilt clip keeps the input's metadata, so it is written in the input's length unit.
     rebuilt = result.motion
-    writers = [(out, lambda: write_bvh(rebuilt, out))]
+    writers = [(out, lambda: write_motion(rebuilt, out))]
     if preview is not None:
         from emotive.render.preview import render_preview
 

@@ -10,7 +10,7 @@ from typing import Annotated
 
 import typer
 
-from emotive.commands.options import out_option, positive
+from emotive.commands.options import UnitOpt, out_option, positive, read_input
 
 
 def preview(
@@ -31,18 +31,18 @@ def preview(
     ] = None,
     width: Annotated[int, typer.Option(help="Width in pixels.", min=64, max=3840)] = 640,
     height: Annotated[int, typer.Option(help="Height in pixels.", min=64, max=2160)] = 480,
+    unit: UnitOpt = "auto",
 ) -> None:
     """Render a clip as a stick figure following the character, with its trail on the ground."""
     from rich.console import Console
 
-    from emotive.io.bvh import read_bvh
     from emotive.io.outputs import PREVIEW_SUFFIXES, check_output
     from emotive.paths import load_path
     from emotive.render.preview import render_preview
 
     check_output(out, PREVIEW_SUFFIXES, "--out")
     ground = load_path(path).points if path is not None else None
-    motion = read_bvh(file)
+    motion = read_input(file, unit)
     captions = [caption] * motion.num_frames if caption else None
     render_preview(
         motion, out, path_xz=ground, captions=captions, title=file.name, fps=fps,

@@ -2,8 +2,8 @@
 
 Every model is trained from a TOML config (``--config``) into a folder (``--out``) holding
 ``last.pt``, ``best.pt`` and ``log.csv``; Ctrl-C keeps the last finished epoch and
-``--resume`` continues exactly. The classifier has its own options (folds, architecture
-comparison).
+``--resume`` continues exactly. The classifier trains from ``configs/classifier.toml`` into
+one file and its model card, optionally with the leave-one-studio-out models for the card.
 
 Heavy modules are imported inside the commands so that ``emotive --help`` stays fast.
 """
@@ -96,35 +96,39 @@ def train_classifier_command(
     out: Annotated[
         Path, typer.Option("--out", help="Folder for the classifier file and its model card.")
     ] = Path("models/classifier"),
-    seed: SeedOpt = 0,
-    epochs: Annotated[int, typer.Option("--epochs", help="Training epochs.", min=1)] = 40,
-    folds: Annotated[
-        int, typer.Option(help="Also cross-validate over this many folds (0: skip).", min=0)
-    ] = 5,
-    architecture: Annotated[
-        str | None,
-        typer.Option(help='Network: "tcn" or "stgcn" (default: the project\'s choice).',
-                     show_default=False),
+    config: Annotated[
+        Path, typer.Option("--config", help="TOML file of the classifier's config fields.")
+    ] = Path("configs/classifier.toml"),
+    seed: Annotated[
+        int | None, typer.Option("--seed", help="Random seed (default: the config's).",
+                                 show_default=False)
     ] = None,
-    compare_seeds: Annotated[
-        int,
-        typer.Option(help="Cross-validate every architecture on the same folds with this many "
-                          "seeds for the card's comparison (0: only the trained one).", min=0),
-    ] = 3,
+    epochs: Annotated[
+        int | None, typer.Option("--epochs", help="Training epochs (default: the config's).",
+                                 min=1, show_default=False)
+    ] = None,
+    studios: Annotated[
+        bool, typer.Option("--studios/--no-studios",
+                           help="Also train on each data set alone and test on the other "
+                                "(leave one studio out) for the card.")
+    ] = True,
 ) -> None:
     """Train the perceived-emotion classifier on real data, measure it, write it and its card."""
+    import time
     from dataclasses import replace
 
     from rich.console import Console
 
-    from emotive.eval.classifier import ClassifierConfig
+    from emotive.eval.classifier_card import classifier_card
     from emotive.eval.classifier_training import (
-        compare_architectures,
-        cross_validate,
-        load_split_features,
+        leave_one_studio_out,
+        load_tracks,
+        read_config,
+        split_features,
+        studio_proxy,
         train_classifier,
+        unsure_rates,
     )
-    from emotive.eval.model_card import classifier_card
     from emotive.io.atomic import atomic_output, output_error
     from emotive.io.outputs import check_output_folder
 
@@ -134,26 +138,28 @@ def train_classifier_command(
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise output_error(out, exc) from exc
-    config = replace(ClassifierConfig(), seed=seed, epochs=epochs)
-    if architecture is not None:
-        config = replace(config, architecture=architecture)
-    data = load_split_features(config, progress=True)
-    model = train_classifier(config, progress=True, data=data)
-    if folds and compare_seeds:
-        console.print(f"cross-validating every architecture over {folds} folds and "
-                      f"{compare_seeds} seeds ...")
-        results = compare_architectures(config, folds, compare_seeds, data=data)
-        model.metrics["architectures"] = results
-        model.metrics["cross_validation"] = results[config.architecture]["runs"][0]
-    elif folds:
-        console.print(f"cross-validating over {folds} folds ...")
-        model.metrics["cross_validation"] = cross_validate(config, folds, data=data)
+    cfg = read_config(config)
+    cfg = replace(cfg, seed=cfg.seed if seed is None else seed,
+                  epochs=cfg.epochs if epochs is None else epochs)
+    start = time.perf_counter()
+    tracks = load_tracks(cfg.datasets, progress=True)
+    data = split_features(tracks, cfg, progress=True)
+    model = train_classifier(cfg, progress=True, data=data)
+    if studios and len(cfg.datasets) == 2:
+        console.print("leave one studio out: training on each data set alone ...")
+        loso, models = leave_one_studio_out(cfg, data)
+        model.metrics["leave_one_studio_out"] = loso
+        model.metrics["studio_proxy"] = studio_proxy(models[cfg.datasets[0]], tracks,
+                                                     cfg.datasets[1])
+    model.metrics["unsure"] = unsure_rates(model, tracks)
+    model.metrics["train_seconds"] = time.perf_counter() - start
     path = model.save(out / "emotion-classifier.pt")
-    card = classifier_card(model, {s: [i.name for i in v] for s, v in data.items()})
+    names = {s: sorted({i.name for i in v}) for s, v in data.items()}
     with atomic_output(out / "MODEL_CARD.md") as tmp:
-        tmp.write_text(card)
+        tmp.write_text(classifier_card(model, names))
     test = model.metrics["test"]
     console.print(
         f"wrote {path} and {out / 'MODEL_CARD.md'}: test window accuracy "
-        f"{test['window_accuracy']:.3f} on {test['windows']} windows of {test['clips']} clips"
+        f"{test['window_accuracy']:.3f} on {test['windows']} windows of {test['clips']} "
+        f"labelled clips"
     )

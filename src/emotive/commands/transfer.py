@@ -16,7 +16,14 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from emotive.commands.options import PreviewOpt, RolesOpt, out_option
+from emotive.commands.options import (
+    ON_INPUT_RIG,
+    PreviewOpt,
+    RolesOpt,
+    UnitOpt,
+    out_option,
+    read_input,
+)
 
 if TYPE_CHECKING:
     from emotive.models.mar.database import MARDatabase
@@ -54,7 +61,7 @@ def transfer(
         typer.Option("--style", help='Output style or blend, e.g. "proud=0.6,angry=0.4".',
                      show_default=False),
     ] = None,
-    out: Annotated[Path | None, out_option("Output .bvh, on the input's rig.")] = None,
+    out: Annotated[Path | None, out_option(ON_INPUT_RIG)] = None,
     action: Annotated[
         str | None,
         typer.Option("--action", help="The input's action if known (walk, run, ...).",
@@ -77,6 +84,7 @@ def transfer(
     ] = None,
     preview: PreviewOpt = None,
     role_map: RolesOpt = None,
+    unit: UnitOpt = "auto",
     index: Annotated[
         Path | None,
         typer.Option("--index", help="Index file (default: in $EMOTIVE_HOME/mar, built on "
@@ -99,7 +107,7 @@ def transfer(
 
     from emotive.data.emotion import EmotionSchedule
     from emotive.errors import BVHError, OutputError
-    from emotive.io.bvh import read_bvh, write_bvh
+    from emotive.io.motion_files import MOTION_SUFFIXES, write_motion
     from emotive.io.outputs import PREVIEW_SUFFIXES, check_output
     from emotive.models.mar.config import TransferError
     from emotive.models.mar.transfer import parse_style, transfer_motion
@@ -115,12 +123,12 @@ def transfer(
         return
     if out is None:
         raise OutputError(f"{input}: give --out OUT.bvh for the translated clip")
-    check_output(out, (".bvh",), "--out")
+    check_output(out, MOTION_SUFFIXES, "--out")
     if preview is not None:
         check_output(preview, PREVIEW_SUFFIXES, "--preview")
     if (style is None) == (style_schedule is None):
         raise TransferError(f"{input}: give exactly one of --style and --style-schedule")
-    motion = read_bvh(input)
+    motion = read_input(input, unit)
     if motion.num_frames == 0:
         raise BVHError(input, None, "holds no frames: there is nothing to translate")
     db, _ = open_index(index, build_index, force)
@@ -141,7 +149,7 @@ def transfer(
         message = str(exc)
         raise type(exc)(message if str(input) in message else f"{input}: {message}") from None
     seconds = time.perf_counter() - start
-    writers = [(out, lambda: write_bvh(result.motion, out))]
+    writers = [(out, lambda: write_motion(result.motion, out))]
     if preview is not None:
         from emotive.render.preview import render_preview
 

@@ -102,6 +102,19 @@ class Skeleton:
                 kids[p].append(j)
         return kids
 
+    def between(self, top: int, joint: int) -> list[int] | None:
+        """The joints strictly between ``top`` and its descendant ``joint``, top first.
+
+        Returns:
+            The indices (empty when ``joint`` is a child of ``top``), or ``None`` when
+            ``joint`` does not hang below ``top``.
+        """
+        path, node = [], int(self.parents[joint])
+        while node >= 0 and node != top:
+            path.append(node)
+            node = int(self.parents[node])
+        return path[::-1] if node == top else None
+
     def scaled(self, factor: float) -> Skeleton:
         """The same rig with every length multiplied by ``factor``."""
         return Skeleton(

@@ -425,12 +425,13 @@ class EmotionSchedule:
         k = len(self.times)
         if k == 1:
             return np.broadcast_to(values[0], (len(flat), values.shape[1])).copy()
-        # Index of the first keyframe after each query; equal times switch instantly.
+        # First keyframe after each query; times under 1 ns apart switch instantly.
         hi = np.clip(np.searchsorted(self.times, flat, side="right"), 1, k - 1)
         lo = hi - 1
         span = self.times[hi] - self.times[lo]
-        safe = np.where(span > 0, span, 1.0)
-        alpha = np.clip(np.where(span > 0, (flat - self.times[lo]) / safe, 1.0), 0.0, 1.0)
+        ramp = span > 1e-9
+        safe = np.where(ramp, span, 1.0)
+        alpha = np.clip(np.where(ramp, (flat - self.times[lo]) / safe, 1.0), 0.0, 1.0)
         alpha[flat < self.times[0]] = 0.0
         return (1 - alpha)[:, None] * values[lo] + alpha[:, None] * values[hi]
 

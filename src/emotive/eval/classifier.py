@@ -33,9 +33,23 @@ both read ``(B, T, F)`` standardized features and give ``(B, C)`` logits:
   pass through a small temporal branch, are averaged over time and joined to the graph
   summary before the linear layer, as STEP joins its affective features.
 
-Any window at least :attr:`ClassifierConfig.min_seconds` long can be classified.
+Both nets expose their pooled window embedding (``embed``, ``(B, E)``) and three heads on it:
+``out``, the label logits; ``aux``, two valence/arousal values (tanh, the -1..1 circumplex of
+:data:`emotive.data.circumplex.VALENCE_AROUSAL`) then logits over the styles both Bandai data
+sets share (:attr:`ClassifierConfig.style_labels`, see :data:`SHARED_STYLE_OF`). The auxiliary
+head lets the clips of every style teach the embedding, not only the labelled ones.
 
-Legend: ``T`` frames, ``J`` joint roles, ``F`` features, ``B`` windows, ``C`` labels.
+Calibration and "unsure" (:class:`EmotionClassifier`): label logits are divided by a
+temperature fitted on the validation split; a window is *unsure* when the Mahalanobis distance
+of its embedding from the training windows' embeddings is beyond their
+:attr:`ClassifierConfig.unsure_quantile` quantile (the 99th percentile): a motion unlike
+anything the classifier was trained on. :meth:`EmotionClassifier.judge` returns both.
+
+Any window at least :attr:`ClassifierConfig.min_seconds` (0.8 s, about one stride) long can be
+classified.
+
+Legend: ``T`` frames, ``J`` joint roles, ``F`` features, ``B`` windows, ``C`` labels, ``E``
+embedding width, ``S`` shared styles, ``K`` judged windows.
 """
 
 from __future__ import annotations
@@ -54,6 +68,7 @@ from emotive.core.motion import Motion
 from emotive.core.roles import ROLES, JointRoles, resolve_roles
 from emotive.data.emotion import DEFAULT_LABELS, check_labels
 from emotive.errors import ConfigError, EmotiveError
+from emotive.eval.classifier_augment import AugmentConfig
 from emotive.features.affective import affective_features_np, role_indices
 from emotive.features.contacts import foot_contacts, leg_length
 from emotive.features.movement import facing_directions, movement_features
@@ -86,39 +101,60 @@ class ClassifierFileError(ClassifierError, ConfigError):
     """A classifier file that is missing, unreadable, or holds a bad entry."""
 
 
+#: The styles both data sets hold, by each data set's style name (dataset 1 | dataset 2).
+SHARED_STYLE_OF: dict[str, str] = {
+    "normal": "neutral", "active": "active", "feminine": "feminine",
+    "masculinity": "masculine", "masculine": "masculine", "tired": "exhausted",
+    "exhausted": "exhausted", "old": "elderly", "elderly": "elderly", "childish": "youthful",
+    "youthful": "youthful",
+}
+#: The shared styles, in the order of the style head.
+SHARED_STYLES: tuple[str, ...] = (
+    "neutral", "active", "feminine", "masculine", "exhausted", "elderly", "youthful",
+)
+#: Version written by :meth:`EmotionClassifier.save`.
+FILE_FORMAT = "emotive-emotion-classifier/2"
+
+
 @dataclass(frozen=True)
 class ClassifierConfig:
     """Sizes, data and training settings; saved with every checkpoint.
 
     Attributes:
         labels: the emotion labels it tells apart.
-        datasets: registry names of the training data.
-        locomotion_only: train on the locomotion contents only (walks, runs, ...).
+        datasets: registry names of the training data (their locomotion clips).
         fps: frame rate of the features.
-        min_seconds, max_seconds: training windows are drawn between these lengths.
-        stride_seconds: spacing of training window starts.
+        min_seconds, max_seconds: training windows are drawn between these lengths; shorter
+            windows are refused.
+        style_labels: the shared styles of the auxiliary style head.
         architecture: the network, a key of :data:`ARCHITECTURES` (``"tcn"`` or ``"stgcn"``).
-            Files written before the field existed hold ``"tcn"`` networks.
         channels: width of the convolutions (``"tcn"``).
         blocks: residual dilated blocks (``"tcn"``).
         graph_channels: per-joint width of the graph blocks (``"stgcn"``).
         graph_blocks: spatial-temporal graph blocks (``"stgcn"``).
         affect_channels: width of the affective and movement branch (``"stgcn"``).
-        dropout: dropout before the output layer.
+        dropout: dropout before the heads.
+        valence_arousal_weight: weight of the valence/arousal regression (squared error).
+        style_weight: weight of the shared-style cross-entropy.
+        augment: ranges of the rig, unit and frame-rate variants
+            (:mod:`emotive.eval.classifier_augment`).
+        augment_copies: augmented variants of every training clip besides the clip itself.
         epochs: training epochs.
+        steps_per_epoch: batches per epoch (windows are drawn afresh for each).
         batch_size: windows per step.
         learning_rate: Adam's step size.
         weight_decay: Adam's L2 penalty.
-        seed: seed of initialization, window draws and batching.
+        unsure_quantile: quantile of the training windows' embedding distances beyond which a
+            window is unsure.
+        seed: seed of initialization, augmentation, window draws and batching.
     """
 
     labels: tuple[str, ...] = DEFAULT_LABELS
-    datasets: tuple[str, ...] = ("bandai-namco-1",)
-    locomotion_only: bool = False
+    datasets: tuple[str, ...] = ("bandai-namco-1", "bandai-namco-2-locomotion")
     fps: float = 15.0
-    min_seconds: float = 2.0
+    min_seconds: float = 0.8
     max_seconds: float = 4.0
-    stride_seconds: float = 0.5
+    style_labels: tuple[str, ...] = SHARED_STYLES
     architecture: str = "tcn"
     channels: int = 48
     blocks: int = 3
@@ -126,29 +162,50 @@ class ClassifierConfig:
     graph_blocks: int = 3
     affect_channels: int = 16
     dropout: float = 0.3
-    epochs: int = 40
+    valence_arousal_weight: float = 1.0
+    style_weight: float = 0.5
+    augment: AugmentConfig = field(default_factory=AugmentConfig)
+    augment_copies: int = 3
+    epochs: int = 20
+    steps_per_epoch: int = 40
     batch_size: int = 64
     learning_rate: float = 2e-3
     weight_decay: float = 1e-3
+    unsure_quantile: float = 0.99
     seed: int = 0
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "labels", check_labels(self.labels))
         object.__setattr__(self, "datasets", tuple(self.datasets))
+        object.__setattr__(self, "style_labels", tuple(self.style_labels))
         if self.architecture not in ARCHITECTURES:
             raise ClassifierError(f"unknown classifier architecture {self.architecture!r}; "
                                   f"choose one of {sorted(ARCHITECTURES)}")
+        if not 0 < self.min_seconds <= self.max_seconds:
+            raise ClassifierError(f"min_seconds {self.min_seconds} and max_seconds "
+                                  f"{self.max_seconds} must satisfy 0 < min <= max")
+        unknown = sorted(set(self.style_labels) - set(SHARED_STYLES))
+        if unknown:
+            raise ClassifierError(f"style_labels {unknown} are not shared styles; choose from "
+                                  f"{list(SHARED_STYLES)}")
 
     @classmethod
     def from_dict(cls, values: dict) -> ClassifierConfig:
-        """The config saved as ``asdict(config)`` (lists back to tuples).
-
-        A dict without ``architecture`` comes from a file written before there was a choice,
-        which always held the temporal CNN, whatever the default is now.
-        """
+        """The config saved as ``asdict(config)`` (lists back to tuples)."""
         values = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items()}
-        values.setdefault("architecture", "tcn")
+        if isinstance(values.get("augment"), dict):
+            values["augment"] = AugmentConfig.from_dict(values["augment"])
         return cls(**values)
+
+
+#: Role map of a role track: role ``k`` of :data:`ROLES` is point ``k``.
+ROLE_POINTS = JointRoles({r: k for k, r in enumerate(ROLES)}, {r: r for r in ROLES}, "roles")
+
+
+def role_track(motion: Motion, role_map: str | None = None) -> np.ndarray:
+    """``(T, J, 3)`` world positions of the 21 joint roles of a clip, metres, Y up."""
+    roles = resolve_roles(motion.skeleton, role_map)
+    return motion.positions_with_end_sites()[:, roles.indices()]
 
 
 def frame_features(positions: np.ndarray, roles: JointRoles, fps: float,
@@ -203,8 +260,12 @@ def frame_features(positions: np.ndarray, roles: JointRoles, fps: float,
 def motion_features(motion: Motion, config: ClassifierConfig,
                     role_map: str | None = None) -> np.ndarray:
     """:func:`frame_features` of a clip at the classifier's rate: ``(T', F)``."""
-    roles = resolve_roles(motion.skeleton, role_map)
-    return frame_features(motion.positions_with_end_sites(), roles, motion.fps, config.fps)
+    return track_features(role_track(motion, role_map), motion.fps, config)
+
+
+def track_features(points: np.ndarray, fps: float, config: ClassifierConfig) -> np.ndarray:
+    """:func:`frame_features` of a ``(T, J, 3)`` role track at the classifier's rate."""
+    return frame_features(points, ROLE_POINTS, fps, config.fps)
 
 
 class _Block(nn.Module):
@@ -217,21 +278,47 @@ class _Block(nn.Module):
         return x + self.act(self.conv(x))
 
 
-class EmotionClassifierNet(nn.Module):
+class _Heads(nn.Module):
+    """The heads shared by both networks on the pooled ``(B, E)`` embedding.
+
+    Subclasses define ``embed(x)``: ``(B, T, F)`` standardized features to ``(B, E)``.
+    """
+
+    def __init__(self, config: ClassifierConfig, width: int) -> None:
+        super().__init__()
+        self.drop = nn.Dropout(config.dropout)
+        self.out = nn.Linear(width, len(config.labels))
+        self.aux = nn.Linear(width, 2 + len(config.style_labels))
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """``(B, C)`` label logits of ``(B, T, F)`` standardized features."""
+        return self.out(self.drop(self.embed(x)))
+
+    def heads(self, x: torch.Tensor) -> tuple[torch.Tensor, ...]:
+        """Everything the network says about ``(B, T, F)`` standardized features.
+
+        Returns:
+            ``(B, E)`` embedding, ``(B, C)`` label logits, ``(B, 2)`` valence/arousal in
+            -1..1 and ``(B, S)`` shared-style logits.
+        """
+        e = self.embed(x)
+        h = self.drop(e)
+        aux = self.aux(h)
+        return e, self.out(h), torch.tanh(aux[:, :2]), aux[:, 2:]
+
+
+class EmotionClassifierNet(_Heads):
     """Temporal CNN (``"tcn"``): ``(B, T, F)`` standardized features to ``(B, C)`` logits."""
 
     def __init__(self, config: ClassifierConfig) -> None:
-        super().__init__()
+        super().__init__(config, config.channels)
         c = config.channels
         self.inp = nn.Sequential(nn.Conv1d(NUM_FEATURES, c, 5, padding=2), nn.ELU())
         self.blocks = nn.Sequential(*(_Block(c, 2 ** (k + 1)) for k in range(config.blocks)))
-        self.drop = nn.Dropout(config.dropout)
-        self.out = nn.Linear(c, len(config.labels))
 
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        """``(B, C)`` logits of ``(B, T, F)`` standardized features."""
-        h = self.blocks(self.inp(x.transpose(1, 2)))
-        return self.out(self.drop(h.mean(-1)))
+    def embed(self, x: torch.Tensor) -> torch.Tensor:
+        """``(B, E = channels)`` mean over time of the last block."""
+        return self.blocks(self.inp(x.transpose(1, 2))).mean(-1)
 
 
 def role_adjacency() -> np.ndarray:
@@ -297,7 +384,7 @@ def joint_nodes(x: torch.Tensor) -> torch.Tensor:
     return nodes.permute(0, 1, 3, 2, 4).reshape(b, t, len(ROLES), 6)
 
 
-class EmotionGraphNet(nn.Module):
+class EmotionGraphNet(_Heads):
     """Spatial-temporal graph network (``"stgcn"``): ``(B, T, F)`` to ``(B, C)`` logits.
 
     The joint columns become ``(B, T, J, 6)`` node signals (:func:`joint_nodes`);
@@ -306,7 +393,7 @@ class EmotionGraphNet(nn.Module):
     """
 
     def __init__(self, config: ClassifierConfig) -> None:
-        super().__init__()
+        super().__init__(config, config.graph_channels + config.affect_channels)
         c = config.graph_channels
         self.blocks = nn.Sequential(*(
             _GraphBlock(6 if k == 0 else c, c, 1 if k == 0 else 2)
@@ -316,14 +403,12 @@ class EmotionGraphNet(nn.Module):
         self.affect = nn.Sequential(
             nn.Conv1d(NUM_FEATURES - JOINT_COLUMNS, a, 5, padding=2), nn.ELU(), _Block(a, 2)
         )
-        self.drop = nn.Dropout(config.dropout)
-        self.out = nn.Linear(c + a, len(config.labels))
 
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        """``(B, C)`` logits of ``(B, T, F)`` standardized features."""
+    def embed(self, x: torch.Tensor) -> torch.Tensor:
+        """``(B, E = graph_channels + affect_channels)``: graph and affect summaries."""
         graph = self.blocks(joint_nodes(x)).mean((1, 2))
         affect = self.affect(x[..., JOINT_COLUMNS:].transpose(1, 2)).mean(-1)
-        return self.out(self.drop(torch.cat((graph, affect), 1)))
+        return torch.cat((graph, affect), 1)
 
 
 #: Network constructors by :attr:`ClassifierConfig.architecture`.
@@ -338,15 +423,55 @@ def build_net(config: ClassifierConfig) -> nn.Module:
     return ARCHITECTURES[config.architecture](config)
 
 
+@dataclass(frozen=True)
+class Judgement:
+    """What the classifier says about the windows of a clip.
+
+    Attributes:
+        times: ``(K,)`` window centre times, seconds.
+        probabilities: ``(K, C)`` calibrated label probabilities.
+        valence_arousal: ``(K, 2)`` valence and arousal in -1..1.
+        distance: ``(K,)`` Mahalanobis distance of each window's embedding from the training
+            windows'.
+        unsure: ``(K,)`` True where ``distance`` is beyond the training windows' quantile.
+        labels: the label of each probability column.
+    """
+
+    times: np.ndarray
+    probabilities: np.ndarray
+    valence_arousal: np.ndarray
+    distance: np.ndarray
+    unsure: np.ndarray
+    labels: tuple[str, ...]
+
+    @property
+    def perceived(self) -> list[str]:
+        """Each window's most probable label, or ``"unsure"``."""
+        return ["unsure" if u else label for u, label in zip(
+            self.unsure, window_labels(self.probabilities, self.labels), strict=True)]
+
+    @property
+    def clip_unsure(self) -> bool:
+        """Whether most windows are unsure."""
+        return bool(self.unsure.mean() > 0.5)
+
+
 @dataclass
 class EmotionClassifier:
-    """A trained classifier: network, standardization and config.
+    """A trained classifier: network, standardization, calibration, novelty test and config.
+
+    A classifier built without the calibration entries (a fresh network) has temperature 1
+    and is never unsure.
 
     Attributes:
         config: how it was built and trained.
         net: the network of ``config.architecture`` (eval mode).
         mean, std: ``(F,)`` standardization of the features.
         metrics: held-out results recorded at training time (accuracy, confusion matrix, ...).
+        temperature: the label logits are divided by it (fitted on the validation split).
+        embedding_mean: ``(E,)`` mean embedding of the training windows (``None``: no test).
+        embedding_precision: ``(E, E)`` inverse covariance of those embeddings.
+        unsure_distance: Mahalanobis distance beyond which a window is unsure.
     """
 
     config: ClassifierConfig
@@ -354,65 +479,140 @@ class EmotionClassifier:
     mean: np.ndarray
     std: np.ndarray
     metrics: dict = field(default_factory=dict)
+    temperature: float = 1.0
+    embedding_mean: np.ndarray | None = None
+    embedding_precision: np.ndarray | None = None
+    unsure_distance: float = math.inf
 
     @property
     def labels(self) -> tuple[str, ...]:
         """The labels, in output order."""
         return self.config.labels
 
-    def predict_features(self, windows: np.ndarray) -> np.ndarray:
-        """Probabilities ``(B, C)`` for feature windows ``(B, T, F)`` (or one ``(T, F)``)."""
-        x = np.asarray(windows, dtype=np.float32)
-        single = x.ndim == 2
-        x = x[None] if single else x
-        x = (x - self.mean) / self.std
+    def outputs(self, windows: np.ndarray) -> dict[str, np.ndarray]:
+        """Every output for feature windows ``(B, T, F)``.
+
+        Returns:
+            ``{"embedding": (B, E), "logits": (B, C) uncalibrated, "probabilities": (B, C)
+            calibrated, "valence_arousal": (B, 2), "style_logits": (B, S), "distance": (B,),
+            "unsure": (B,) bool}``.
+        """
+        x = (np.asarray(windows, dtype=np.float32) - self.mean) / self.std
         self.net.eval()
         with torch.no_grad():
-            prob = torch.softmax(self.net(torch.from_numpy(np.ascontiguousarray(x))), -1).numpy()
+            e, logits, va, style = (t.numpy() for t in self.net.heads(
+                torch.from_numpy(np.ascontiguousarray(x))))
+        z = logits / self.temperature
+        prob = np.exp(z - z.max(-1, keepdims=True))
+        prob /= prob.sum(-1, keepdims=True)
+        if self.embedding_mean is None or self.embedding_precision is None:
+            distance = np.zeros(len(e))
+        else:
+            d = e.astype(np.float64) - self.embedding_mean
+            distance = np.sqrt(np.maximum(np.einsum("be,ef,bf->b", d, self.embedding_precision,
+                                                    d), 0.0))
+        return {"embedding": e, "logits": logits, "probabilities": prob.astype(np.float32),
+                "valence_arousal": va, "style_logits": style, "distance": distance,
+                "unsure": distance > self.unsure_distance}
+
+    def predict_features(self, windows: np.ndarray) -> np.ndarray:
+        """Calibrated probabilities ``(B, C)`` for feature windows ``(B, T, F)`` (or ``(T, F)``)."""
+        x = np.asarray(windows, dtype=np.float32)
+        single = x.ndim == 2
+        prob = self.outputs(x[None] if single else x)["probabilities"]
         return prob[0] if single else prob
 
-    def classify(
-        self, motion: Motion, window_seconds: float = 4.0, hop_seconds: float = 1.0,
-        role_map: str | None = None,
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """Perceived emotion over time.
+    def windows(self, feats: np.ndarray, window_seconds: float, hop_seconds: float,
+                name: str = "the motion", seconds: float | None = None
+                ) -> tuple[np.ndarray, np.ndarray]:
+        """Cut ``(T, F)`` features into judged windows.
 
         Args:
-            motion: any clip whose rig has the joint roles.
+            feats: ``(T, F)`` features at the classifier's rate.
+            window_seconds: length of each window (a shorter clip is one window).
+            hop_seconds: spacing of the windows.
+            name: the clip, for messages.
+            seconds: the clip's duration, for messages (default: that of the features).
+
+        Returns:
+            ``(K,)`` window centre times, seconds, and ``(K, L, F)`` windows.
+
+        Raises:
+            ClassifierError: the window or the clip is shorter than ``min_seconds``.
+        """
+        rate = self.config.fps
+        least = self.config.min_seconds
+        seconds = len(feats) / rate if seconds is None else seconds
+        if window_seconds < least - 1e-9:
+            raise ClassifierError(
+                f"a window of {window_seconds:g} s is too short for {name} ({seconds:.2f} s): "
+                f"the classifier needs windows of at least {least:g} s; pass a longer window"
+            )
+        need = math.ceil(least * rate - 1e-9)
+        if len(feats) < need:
+            raise ClassifierError(
+                f"{name} lasts {seconds:.2f} s; the classifier needs at least {least:g} s "
+                "(about one stride): give it a longer clip"
+            )
+        length = min(len(feats), max(need, round(window_seconds * rate)))
+        hop = max(1, round(hop_seconds * rate))
+        starts = np.arange(0, len(feats) - length + 1, hop)
+        return (starts + 0.5 * length) / rate, np.stack([feats[s:s + length] for s in starts])
+
+    def judge(self, motion: Motion, window_seconds: float = 4.0, hop_seconds: float = 1.0,
+              role_map: str | None = None) -> Judgement:
+        """Perceived emotion over time, with valence/arousal and the unsure flags.
+
+        Args:
+            motion: any clip whose rig has the joint roles, at any frame rate and size.
             window_seconds: length of each judged window (at least ``min_seconds``; clips
                 shorter than a window are judged whole).
             hop_seconds: spacing of the windows.
             role_map: role map of the rig (see :func:`emotive.core.roles.resolve_roles`).
 
+        Raises:
+            ClassifierError: the window or the clip is shorter than ``min_seconds``.
+        """
+        name = str(motion.metadata.get("name", "the motion"))
+        feats = motion_features(motion, self.config, role_map)
+        times, windows = self.windows(feats, window_seconds, hop_seconds, name, motion.duration)
+        out = self.outputs(windows)
+        return Judgement(times, out["probabilities"], out["valence_arousal"], out["distance"],
+                         out["unsure"], self.labels)
+
+    def classify(
+        self, motion: Motion, window_seconds: float = 4.0, hop_seconds: float = 1.0,
+        role_map: str | None = None,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Perceived emotion over time (:meth:`judge` without the extras).
+
         Returns:
-            ``(K,)`` window centre times in seconds and ``(K, C)`` probabilities.
+            ``(K,)`` window centre times in seconds and ``(K, C)`` calibrated probabilities.
 
         Raises:
-            ClassifierError: the clip is shorter than ``min_seconds``.
+            ClassifierError: the window or the clip is shorter than ``min_seconds``.
         """
-        feats = motion_features(motion, self.config, role_map)
-        rate = self.config.fps
-        need = math.ceil(self.config.min_seconds * rate)
-        if len(feats) < need:
-            raise ClassifierError(
-                f"{motion.metadata.get('name', 'the motion')} lasts {motion.duration:.2f} s; "
-                f"the classifier needs at least {self.config.min_seconds:g} s"
-            )
-        length = min(len(feats), max(need, round(window_seconds * rate)))
-        hop = max(1, round(hop_seconds * rate))
-        starts = np.arange(0, len(feats) - length + 1, hop)
-        windows = np.stack([feats[s:s + length] for s in starts])
-        return (starts + 0.5 * length) / rate, self.predict_features(windows)
+        j = self.judge(motion, window_seconds, hop_seconds, role_map)
+        return j.times, j.probabilities
 
     def save(self, path: str | Path) -> Path:
         """Write the classifier to one ``.pt`` file atomically."""
+        width = self.net.out.in_features
         payload = {
-            "format": "emotive-emotion-classifier/1",
+            "format": FILE_FORMAT,
             "config": asdict(self.config),
             "state": self.net.state_dict(),
             "mean": torch.from_numpy(self.mean),
             "std": torch.from_numpy(self.std),
             "metrics": json.dumps(self.metrics),
+            "temperature": torch.tensor(float(self.temperature), dtype=torch.float64),
+            "embedding_mean": torch.from_numpy(np.asarray(
+                self.embedding_mean if self.embedding_mean is not None else np.zeros(width),
+                dtype=np.float64)),
+            "embedding_precision": torch.from_numpy(np.asarray(
+                self.embedding_precision if self.embedding_precision is not None
+                else np.eye(width), dtype=np.float64)),
+            "unsure_distance": torch.tensor(float(self.unsure_distance), dtype=torch.float64),
         }
         # An open file makes torch raise OSError (ENOSPC) on a full disk, which atomic_output
         # turns into one OutputError; a path would give torch's multi-line RuntimeError.
@@ -426,7 +626,8 @@ class EmotionClassifier:
 
         The weights are checked tensor by tensor (keys and shapes of the config's network,
         finite values of a plausible size); ``mean`` and ``std`` must be ``(F,)``, finite, the
-        ``std`` above 0; ``metrics`` a JSON text.
+        ``std`` above 0; the temperature above 0; the embedding statistics ``(E,)`` and
+        ``(E, E)``; ``metrics`` a JSON text.
 
         Raises:
             ClassifierFileError: missing, a folder, unreadable, or not a usable classifier
@@ -446,10 +647,14 @@ class EmotionClassifier:
 
 def _build(payload: dict) -> EmotionClassifier:
     """The classifier of a loaded file (``ValueError`` and others on a bad entry)."""
-    if payload.get("format") != "emotive-emotion-classifier/1":
-        raise ValueError("no 'format' entry 'emotive-emotion-classifier/1'")
+    if payload.get("format") != FILE_FORMAT:
+        raise ValueError(f"no 'format' entry {FILE_FORMAT!r} (files of format 1, from before "
+                         "the calibrated classifier, must be retrained)")
     require_keys(payload, {"config": dict, "state": dict, "mean": torch.Tensor,
-                           "std": torch.Tensor, "metrics": str})
+                           "std": torch.Tensor, "metrics": str, "temperature": torch.Tensor,
+                           "embedding_mean": torch.Tensor,
+                           "embedding_precision": torch.Tensor,
+                           "unsure_distance": torch.Tensor})
     config = ClassifierConfig.from_dict(payload["config"])
     net = build_net(config)
     load_weights(net, payload["state"])
@@ -460,11 +665,24 @@ def _build(payload: dict) -> EmotionClassifier:
             raise ValueError(f"{name!r} has shape {tuple(value.shape)}, not ({NUM_FEATURES},)")
         check_values(value, repr(name), positive=name == "std")
         stats[name] = value.numpy().astype(np.float32)
+    width = net.out.in_features
+    for name, shape in (("embedding_mean", (width,)), ("embedding_precision", (width, width))):
+        if tuple(payload[name].shape) != shape:
+            raise ValueError(f"{name!r} has shape {tuple(payload[name].shape)}, not {shape}")
+        check_values(payload[name], repr(name))
+    temperature = float(payload["temperature"])
+    if not (math.isfinite(temperature) and temperature > 0):
+        raise ValueError(f"'temperature' is {temperature}, not a positive number")
+    unsure = float(payload["unsure_distance"])
+    if not unsure > 0:
+        raise ValueError(f"'unsure_distance' is {unsure}, not a positive number")
     metrics = json.loads(payload["metrics"])
     if not isinstance(metrics, dict):
         raise ValueError(f"'metrics' holds a {type(metrics).__name__}, not a JSON object")
     net.eval()
-    return EmotionClassifier(config, net, stats["mean"], stats["std"], metrics)
+    return EmotionClassifier(config, net, stats["mean"], stats["std"], metrics, temperature,
+                             payload["embedding_mean"].numpy(),
+                             payload["embedding_precision"].numpy(), unsure)
 
 
 def default_classifier_path() -> Path:

@@ -341,7 +341,7 @@ def run_suites(subject: Subject, suite: str, classifier: EmotionClassifier | Non
     for name in track(names, description="evaluating", disable=not progress,
                       console=Console(stderr=True), transient=True):
         results[name] = SUITES[name][1](ctx)
-    real = classifier.metrics.get("test", {}).get("window_accuracy", float("nan"))
+    real = suites.real_test_metrics(classifier).get("window_accuracy", float("nan"))
     info = {
         "model": subject.name,
         "suites": ", ".join(names),

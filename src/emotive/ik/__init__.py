@@ -5,7 +5,10 @@ damped least squares solver warm-started from the previous frame, extraction of 
 end-effector and elbow trajectories in chain frames, and helpers built on them:
 :func:`reconstruct` rebuilds a clip from its own trajectories, :func:`pin_feet` keeps planted
 feet still (foot-plant cleanup for the generators) and :func:`root_from_stance` rebuilds a
-gliding root's path from the stance foot.
+gliding root's path from the stance foot. Chains work on any humanoid rig: consecutive chain
+joints may have intermediate joints between them (CMU's ``Neck1``, Unreal's ``spine_02``), which
+keep the clip's rotations (:func:`link_transforms`), and knee and elbow hinges count flexion
+from the straight limb whatever the rig's joint frames.
 """
 
 from emotive.ik.api import IKResult, pin_feet, rebuild, reconstruct, solve_chains
@@ -17,6 +20,7 @@ from emotive.ik.chains import (
     IKError,
     JointSpec,
     build_chain,
+    link_transforms,
     resolve_chains,
 )
 from emotive.ik.solver import ChainSolution, Unreachable, solve_chain
@@ -48,6 +52,7 @@ __all__ = [
     "chain_targets",
     "extract_trajectories",
     "integrate_pelvis",
+    "link_transforms",
     "pelvis_trajectory",
     "pin_feet",
     "rebuild",

@@ -14,7 +14,7 @@ import numpy as np
 
 from emotive.core.motion import Motion
 from emotive.core.roles import resolve_roles
-from emotive.ik.chains import Chain, IKError, resolve_chains
+from emotive.ik.chains import Chain, IKError, link_transforms, resolve_chains
 from emotive.ik.solver import Unreachable, single_thread, solve_chain
 from emotive.ik.trajectories import Trajectories, extract_trajectories, integrate_pelvis, to_world
 from emotive.transforms.kinematics import forward_kinematics_np
@@ -74,6 +74,8 @@ def solve_chains(
 
     Chains are solved in the order of ``chains`` (torso before arms), each from the clip as
     updated by the chains before it, so arm targets in the chest frame follow the new torso.
+    Intermediate joints between chain joints (CMU's ``Neck1``) keep the clip's rotations and
+    move with the chain joint above them.
 
     Args:
         motion: the clip supplying the root path, untouched joints and (``init="motion"``)
@@ -130,9 +132,11 @@ def _solve_chains(
         if frame == "chain":
             tgt = to_world(tgt, grot[:, chain.frame], gpos[:, chain.frame])
         start_pose = rot[:, chain.joints] if init == "motion" else chain.neutral
+        local_pos, link_rot = link_transforms(chain, rot, motion.positions)
         sol = solve_chain(
-            chain, grot[:, chain.base], gpos[:, chain.base], motion.positions[:, chain.joints],
-            _target_offsets(chain, grot, gpos, pts), tgt, start_pose, **solver,
+            chain, grot[:, chain.base], gpos[:, chain.base], local_pos,
+            _target_offsets(chain, grot, gpos, pts), tgt, start_pose, link_rot=link_rot,
+            **solver,
         )
         rot[:, chain.joints] = sol.rotations
         residuals[name], unreachable[name] = sol.residual, sol.unreachable
@@ -154,8 +158,8 @@ def reconstruct(
 
     Extracts the pelvis path and every chain's targets, puts the pelvis back from its
     invariant path, resets the chain joints to their neutral pose and solves the five chains
-    from the targets alone. Joints outside the chains (clavicles, toes, ...) keep their
-    rotations.
+    from the targets alone. Joints outside the chains (clavicles, toes, intermediate joints
+    between chain joints such as CMU's ``Neck1``, ...) keep their rotations.
 
     Args:
         motion: the clip.

@@ -2,6 +2,15 @@
 
 Each chain joint is driven by a 3-vector ``theta`` of angles about three axes fixed in the
 joint's local frame (columns of ``axes``): the local rotation is ``ref * exp(axes @ theta)``.
+
+Consecutive chain joints need not be parent and child: any number of *intermediate* joints
+may sit between them (CMU's ``Neck1`` between ``Neck`` and ``Head``, Mixamo's ``Spine1``
+between ``Spine`` and ``Spine2``, Unreal's ``spine_02``). Intermediates are not solved: they
+keep the local rotation of the clip being solved (a rebuild from scratch keeps the clip's
+rotations for them, as for every joint outside the chains), and the chain's forward
+kinematics goes through them (:func:`link_transforms` folds each run of intermediates into one
+fixed transform per frame). Joints between the chain's base and its first joint (CMU's
+``LHipJoint``, ``LowerBack``) are above the chain: the base is the first joint's parent.
 The first axis of a ball or swing joint is its bone (the twist axis); a hinge has its single
 axis first and the other two locked (``lower == upper == 0``). Limits are boxes on ``theta``.
 
@@ -21,6 +30,7 @@ from emotive.core.roles import JointRoles, resolve_roles
 from emotive.core.skeleton import Skeleton
 from emotive.errors import EmotiveError, RigError
 from emotive.transforms.np_rotations import (
+    quaternion_apply,
     quaternion_invert,
     quaternion_mean,
     quaternion_multiply,
@@ -56,7 +66,8 @@ class ChainSpec:
 
     Attributes:
         name: ``left_leg``, ``right_leg``, ``left_arm``, ``right_arm`` or ``head_torso``.
-        joints: the solved joints, parent first; each joint's parent is the previous one.
+        joints: the solved joints, parent first; each joint hangs below the previous one,
+            directly or through intermediate joints.
         targets: ``(role, weight)`` of each position target (end effector last).
         frame: role whose world frame the chain's trajectories are expressed in.
     """
@@ -143,6 +154,9 @@ class Chain:
         axes: ``(k, 3, 3)`` parameter axes (columns) in each joint's local frame.
         lower: ``(k, 3)`` lower limits in radians.
         upper: ``(k, 3)`` upper limits in radians.
+        between: per chain joint, ``(n_i,)`` indices of the intermediate joints between the
+            previous chain joint (nothing for the first) and it, parent first; all empty on
+            a rig whose chain joints are parent and child.
     """
 
     name: str
@@ -159,6 +173,12 @@ class Chain:
     axes: np.ndarray
     lower: np.ndarray
     upper: np.ndarray
+    between: tuple[np.ndarray, ...] = ()
+
+    @property
+    def has_intermediates(self) -> bool:
+        """Whether any intermediate joint sits between two chain joints."""
+        return any(len(b) for b in self.between)
 
     @property
     def dof(self) -> int:
@@ -185,6 +205,65 @@ def _frame_axes(bone: np.ndarray, first: np.ndarray | None = None) -> np.ndarray
     return np.stack((a, b, np.cross(a, b)), axis=1)
 
 
+#: Angle between the bones above and below a hinge at its identity rotation under which the
+#: limb counts as straight there (radians, 1 degree).
+STRAIGHT = np.radians(1.0)
+
+
+def _angle_about(axis: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
+    """Signed angle (radians) that turns ``a`` onto ``b`` about the unit ``axis``."""
+    a = a - (a @ axis) * axis
+    b = b - (b @ axis) * axis
+    return float(np.arctan2(axis @ np.cross(a, b), a @ b))
+
+
+def _hinge_fit(
+    local: np.ndarray | None, above: np.ndarray, below: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, float]:
+    """Zero rotation, axis and median flexion of a hinge (knee, elbow).
+
+    A rig whose limb is straight at the hinge's identity rotation (the Bandai rig, CMU's
+    T-pose) takes the axis from the rotation vectors (:func:`_hinge_axis`), zero at the
+    identity. On other rigs (joint frames aligned with the world in a bent rest pose, or
+    turned off the bone), the hinge is fitted around the mean rotation of the clip and its zero
+    moved to where the limb is straight, so that the limits (flexion from straight) mean the
+    same on every rig.
+
+    Args:
+        local: ``(T, 4)`` local rotations of the hinge in the reference clip, or ``None``.
+        above: ``(3,)`` the bone into the hinge, in the hinge's parent frame.
+        below: ``(3,)`` the bone out of the hinge, in its own frame.
+
+    Returns:
+        ``(4,)`` rotation at zero flexion (the straight limb), ``(3,)`` unit axis in the frame
+        after it (flexion positive in the clip), and the median flexion in radians.
+    """
+    ident = np.array([1.0, 0.0, 0.0, 0.0])
+    unit_above = above / max(np.linalg.norm(above), 1e-12)
+    unit_below = below / max(np.linalg.norm(below), 1e-12)
+    if local is None or np.arccos(np.clip(unit_above @ unit_below, -1.0, 1.0)) < STRAIGHT:
+        axis, flex = _hinge_axis(local)
+        return ident, axis, flex
+    mean = quaternion_mean(local)
+    target = quaternion_apply(quaternion_invert(mean), unit_above)
+    v = quaternion_to_axis_angle(quaternion_multiply(quaternion_invert(mean)[None], local))
+    if np.median(np.linalg.norm(v, axis=-1)) < np.radians(2.0):
+        # A still clip shows no axis: bend in the plane of the two bones.
+        axis = np.cross(target, unit_below)
+        norm = np.linalg.norm(axis)
+        axis = axis / norm if norm > 1e-9 else _frame_axes(unit_below)[:, 1]
+        proj = np.zeros(len(v))
+    else:
+        axis = np.linalg.eigh(v.T @ v)[1][:, -1]
+        proj = v @ axis
+    straight = _angle_about(axis, unit_below, target)
+    if np.median(proj) - straight < 0:
+        axis, proj, straight = -axis, -proj, -straight
+    zero = quaternion_multiply(mean, np.array([np.cos(straight / 2),
+                                               *(np.sin(straight / 2) * axis)]))
+    return zero, axis, float(np.median(proj) - straight)
+
+
 def _hinge_axis(local: np.ndarray | None) -> tuple[np.ndarray, float]:
     """Hinge axis (local frame) and median flexion from ``(T, 4)`` local rotations.
 
@@ -204,6 +283,25 @@ def _hinge_axis(local: np.ndarray | None) -> tuple[np.ndarray, float]:
     return axis, float(np.median(proj))
 
 
+def _intermediates(skeleton: Skeleton, name: str, joints: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Per chain joint, the ``(n_i,)`` joints between the previous chain joint and it.
+
+    Raises:
+        RigError: a chain joint does not hang below the previous one.
+    """
+    out = [np.zeros(0, dtype=np.int64)]
+    for a, b in itertools.pairwise(joints):
+        path = skeleton.between(a, b)
+        if path is None:
+            raise RigError(
+                f"chain {name}: {skeleton.names[b]} does not hang below {skeleton.names[a]}; "
+                "map the roles to joints along one parent-to-child path (intermediate joints "
+                "between them are allowed)"
+            )
+        out.append(np.array(path, dtype=np.int64))
+    return tuple(out)
+
+
 def build_chain(
     skeleton: Skeleton,
     spec: ChainSpec,
@@ -221,18 +319,13 @@ def build_chain(
             rest pose (identity rotations) and local Z hinges.
 
     Raises:
-        RigError: the roles do not form a parent-to-child chain on this rig.
+        RigError: the roles do not lie along one parent-to-child path on this rig.
     """
     n = skeleton.num_joints
     joints = np.array([roles.index[j.role] for j in spec.joints], dtype=np.int64)
     if np.any(joints >= n):
         raise RigError(f"chain {spec.name}: every chain joint must be a joint, not an end site")
-    for a, b in itertools.pairwise(joints):
-        if skeleton.parents[b] != a:
-            raise RigError(
-                f"chain {spec.name}: {skeleton.names[b]} is not a child of {skeleton.names[a]}; "
-                "map the roles to a parent-to-child chain"
-            )
+    between = _intermediates(skeleton, spec.name, joints)
     targets = np.array([roles.index[r] for r, _ in spec.targets], dtype=np.int64)
     anchors, reach = [], []
     for t in targets:
@@ -246,7 +339,8 @@ def build_chain(
             node = parent
         pos = int(np.flatnonzero(joints == node)[0])
         anchors.append(pos)
-        length += float(sum(np.linalg.norm(skeleton.offsets[j]) for j in joints[1 : pos + 1]))
+        path = [int(j) for i in range(1, pos + 1) for j in (*between[i], joints[i])]
+        length += float(sum(np.linalg.norm(skeleton.offsets[j]) for j in path))
         reach.append(length)
     k = len(joints)
     ref = np.tile([1.0, 0.0, 0.0, 0.0], (k, 1))
@@ -255,17 +349,32 @@ def build_chain(
     lower = np.radians([j.lower for j in spec.joints])
     upper = np.radians([j.upper for j in spec.joints])
     children = skeleton.children
+    # Bones between consecutive chain joints at rest, through the intermediates' first-frame
+    # rotations: ``links[i]`` is joint i in the previous joint's frame, ``turns[i]`` the
+    # rotation of joint i's parent frame in it.
+    rest_rot = np.zeros((1, n, 4))
+    rest_rot[..., 0] = 1.0
+    if reference is not None:
+        rest_rot = reference.rotations[:1]
+    links, turns = _fold(joints, between, rest_rot, skeleton.offsets[None])
+    links, turns = links[0], turns[0]
     for i, (j, js) in enumerate(zip(joints, spec.joints, strict=True)):
         local = None if reference is None else reference.rotations[:, j]
-        kids = [c for c in children[j] if c in joints] or children[j]
-        bone = skeleton.offsets[kids[0]] if kids else np.array([1.0, 0.0, 0.0])
+        if i + 1 < k:
+            bone = links[i + 1]
+        else:
+            bone = skeleton.offsets[children[j][0]] if children[j] else np.array([1.0, 0, 0])
         if js.dof == "hinge":
-            axis, flex = _hinge_axis(local)
+            # The limb above the hinge, in the hinge's parent frame.
+            above = quaternion_apply(quaternion_invert(turns[i]), links[i])
+            hinge_ref, axis, flex = _hinge_fit(local, above, bone)
             axes[i] = _frame_axes(bone, axis)
             # A straight limb is singular (no joint moves the tip along the limb), so the
             # neutral pose keeps the hinge bent by at least 15 degrees.
             flex = float(np.clip(flex, lower[i, 0] + np.radians(15.0), upper[i, 0]))
-            neutral[i] = [np.cos(flex / 2), *(np.sin(flex / 2) * axis)]
+            ref[i] = hinge_ref
+            neutral[i] = quaternion_multiply(
+                hinge_ref, np.array([np.cos(flex / 2), *(np.sin(flex / 2) * axis)]))
         else:
             axes[i] = _frame_axes(bone)
             if local is not None:
@@ -277,7 +386,7 @@ def build_chain(
         spec.name, joints, base, roles.index[spec.frame], targets,
         tuple(r for r, _ in spec.targets), np.array(anchors, dtype=np.int64),
         np.array([w for _, w in spec.targets]), np.array(reach), ref, neutral, axes,
-        lower, upper,
+        lower, upper, between,
     )
 
 
@@ -322,3 +431,48 @@ def theta_from_rotations(chain: Chain, local: np.ndarray) -> np.ndarray:
     v = quaternion_to_axis_angle(rel)
     theta = np.einsum("kab,...ka->...kb", chain.axes, v)
     return np.where(chain.upper > chain.lower, theta, 0.0)
+
+
+def link_transforms(
+    chain: Chain, rotations: np.ndarray, positions: np.ndarray
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """Each chain joint's translation and parent-frame rotation in the previous joint's frame.
+
+    Folds the intermediate joints between consecutive chain joints into one transform per
+    frame: chain joint ``i`` sits at ``local_pos[:, i]`` in the frame of chain joint ``i - 1``
+    (the base for ``i = 0``), and its parent's frame is that frame turned by
+    ``link_rot[:, i]``. Without intermediates these are the joints' own local translations
+    and the identity.
+
+    Args:
+        chain: the chain.
+        rotations: ``(T, J, 4)`` local rotations of the clip (the intermediates' are used).
+        positions: ``(T, J, 3)`` local translations of the clip.
+
+    Returns:
+        ``(T, k, 3)`` translations in metres and ``(T, k, 4)`` rotations, or ``None`` for the
+        rotations when the chain has no intermediates.
+    """
+    if not chain.has_intermediates:
+        return positions[:, chain.joints].copy(), None
+    return _fold(chain.joints, chain.between, rotations, positions)
+
+
+def _fold(
+    joints: np.ndarray, between: tuple[np.ndarray, ...], rotations: np.ndarray,
+    positions: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`link_transforms` of ``(T, J, 4)`` rotations and ``(T, J, 3)`` translations."""
+    local_pos = positions[:, joints].copy()
+    link_rot = np.zeros((*local_pos.shape[:-1], 4))
+    link_rot[..., 0] = 1.0
+    for i, path in enumerate(between):
+        if not len(path):
+            continue
+        rot, pos = rotations[:, path[0]], positions[:, path[0]]
+        for m in path[1:]:
+            pos = pos + quaternion_apply(rot, positions[:, m])
+            rot = quaternion_multiply(rot, rotations[:, m])
+        local_pos[:, i] = pos + quaternion_apply(rot, positions[:, joints[i]])
+        link_rot[:, i] = rot
+    return local_pos, link_rot

@@ -175,15 +175,20 @@ class _ChainKernel:
         return quaternion_multiply(ref, axis_angle_to_quaternion(v))
 
     def points(
-        self, theta: torch.Tensor, base_rot: torch.Tensor, nodes_pos: torch.Tensor
+        self, theta: torch.Tensor, base_rot: torch.Tensor, nodes_pos: torch.Tensor,
+        link: torch.Tensor | None = None,
     ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """World rotations ``(B, k, 4)``, joint positions ``(B, k, 3)``, targets ``(B, M, 3)``.
 
         The same transforms as :func:`forward_kinematics` on the chain's nodes, written as the
         serial product it is: the generic level-by-level gathers cost more than the arithmetic
-        on tensors this small, and this runs in the innermost loop.
+        on tensors this small, and this runs in the innermost loop. ``link`` (``(B, k, 4)``,
+        or ``None`` for the identity) turns each joint's parent frame (the intermediates of
+        :func:`~emotive.ik.chains.link_transforms`).
         """
         local = self.local(theta)
+        if link is not None:
+            local = quaternion_multiply(link, local)
         rot, pos = base_rot, nodes_pos[:, 0]
         rots, poss = [], []
         for i in range(self.k):
@@ -197,13 +202,17 @@ class _ChainKernel:
         return grot, jpos, pts
 
     def points_reference(
-        self, theta: torch.Tensor, base_rot: torch.Tensor, nodes_pos: torch.Tensor
+        self, theta: torch.Tensor, base_rot: torch.Tensor, nodes_pos: torch.Tensor,
+        link: torch.Tensor | None = None,
     ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """:meth:`points` by :func:`forward_kinematics` (the check that both agree)."""
         b = theta.shape[0]
         ident = torch.zeros(b, self.m, 4, dtype=_DTYPE)
         ident[..., 0] = 1.0
-        rots = torch.cat((base_rot[:, None], self.local(theta), ident), 1)
+        local = self.local(theta)
+        if link is not None:
+            local = quaternion_multiply(link, local)
+        rots = torch.cat((base_rot[:, None], local, ident), 1)
         grot, gpos = forward_kinematics(rots, nodes_pos, self.parents)
         k = self.k
         return grot[:, 1 : k + 1], gpos[:, 1 : k + 1], gpos[:, k + 1 :]
@@ -237,6 +246,7 @@ def solve_chain(
     targets: np.ndarray,
     init: np.ndarray,
     *,
+    link_rot: np.ndarray | None = None,
     posture: np.ndarray | None = None,
     damping: float = 0.01,
     posture_gain: float = 0.2,
@@ -260,11 +270,16 @@ def solve_chain(
         chain: the chain.
         base_rot: ``(T, 4)`` world rotation of the chain's base joint.
         base_pos: ``(T, 3)`` world position of the chain's base joint.
-        local_pos: ``(T, k, 3)`` local translations of the chain joints.
+        local_pos: ``(T, k, 3)`` translation of each chain joint in the previous chain joint's
+            frame (the base's for the first): the local translations, on a chain without
+            intermediate joints (see :func:`~emotive.ik.chains.link_transforms`).
         target_offsets: ``(T, M, 3)`` offset of each target point in its anchor joint's frame.
         targets: ``(T, M, 3)`` world targets, metres.
         init: ``(T, k, 4)`` or ``(k, 4)`` initial local rotations (used by the first frame of
             each segment, or by every frame when ``warm_start`` is off).
+        link_rot: ``(T, k, 4)`` rotation of each chain joint's parent frame in the previous
+            chain joint's frame (the product of the intermediate joints' local rotations);
+            ``None``: the identity (no intermediates).
         posture: ``(T, k, 4)`` or ``(k, 4)`` pose the redundant DOF lean to; ``init`` if None.
         damping: DLS damping ``l``, metres.
         posture_gain: ``g``, fraction of the posture gap closed per iteration; 0 disables it.
@@ -287,7 +302,8 @@ def solve_chain(
     """
     with single_thread():
         args = (chain, *(np.asarray(a, dtype=np.float64)
-                         for a in (base_rot, base_pos, local_pos, target_offsets, targets)))
+                         for a in (base_rot, base_pos, local_pos, target_offsets, targets)),
+                None if link_rot is None else np.asarray(link_rot, dtype=np.float64))
         sol = _solve(*args, init, posture, damping, posture_gain, max_iter, tol, warm_start,
                      segment, burn_in)
         t_len = len(sol.residual)
@@ -315,7 +331,8 @@ def _retry(
     """Solve the frames whose residual exceeds ``above`` again; keep each frame's best.
 
     Args:
-        args: ``(chain, base_rot, base_pos, local_pos, target_offsets, targets)`` of the solve.
+        args: ``(chain, base_rot, base_pos, local_pos, target_offsets, targets, link_rot)``
+            of the solve.
         sol: the first solution.
         posture: ``(T, k, 4)`` posture of the solve.
         init: ``(T, k, 4)`` initial pose of the solve.
@@ -335,7 +352,7 @@ def _retry(
     resid, iters = sol.residual.copy(), sol.iterations.copy()
 
     def attempt(frames: np.ndarray, start: np.ndarray, warm: bool) -> None:
-        sub = [a[frames] for a in args[1:]]
+        sub = _frames_of(args, frames)
         r = _solve(chain, *sub, start, posture[frames], damping, posture_gain, retry_iter, tol,
                    warm, len(frames), 0)
         iters[frames] += r.iterations
@@ -357,7 +374,7 @@ def _retry(
                                 mode="edge") for r in runs])
         real = np.arange(width)[None, :] <= np.array([len(r) for r in runs])[:, None]
         frames = rows.ravel()
-        sub = [a[frames] for a in args[1:]]
+        sub = _frames_of(args, frames)
         r = _solve(chain, *sub, rot[frames], posture[frames], damping, posture_gain,
                    max_iter, tol, True, width, 0)
         keep = real.ravel()
@@ -370,6 +387,11 @@ def _retry(
     return ChainSolution(rot, theta, resid, iters, sol.unreachable)
 
 
+def _frames_of(args: tuple, frames: np.ndarray) -> list[np.ndarray | None]:
+    """The per-frame arrays of a solve's ``args`` (all but the chain) at ``frames``."""
+    return [None if a is None else a[frames] for a in args[1:]]
+
+
 def _solve(
     chain: Chain,
     base_rot: np.ndarray,
@@ -377,6 +399,7 @@ def _solve(
     local_pos: np.ndarray,
     target_offsets: np.ndarray,
     targets: np.ndarray,
+    link_rot: np.ndarray | None,
     init: np.ndarray,
     posture: np.ndarray | None,
     damping: float,
@@ -409,6 +432,7 @@ def _solve(
     t_targets = torch.as_tensor(targets, dtype=_DTYPE)
     t_theta0 = torch.as_tensor(theta0, dtype=_DTYPE)
     t_post = torch.as_tensor(theta_post, dtype=_DTYPE)
+    t_link = None if link_rot is None else torch.as_tensor(link_rot, dtype=_DTYPE)
 
     if warm_start and t_len > 0:
         seg = max(1, min(segment, t_len))
@@ -437,13 +461,15 @@ def _solve(
             theta = t_theta0[idx].clone()
         tgt, post = t_targets[idx], t_post[idx]
         brot, npos = t_base[idx], nodes_pos[idx]
+        link = None if t_link is None else t_link[idx]
         cap = max_iter * 3 if step == 0 else max_iter
         used = torch.zeros(len(frames), dtype=torch.int64)
         # Frames still iterating: each leaves once on target or once its step vanishes.
         act = torch.arange(len(frames))
         for _ in range(cap):
             th, ta = theta[act], tgt[act]
-            grot, jpos, pts = kern.points(th, brot[act], npos[act])
+            grot, jpos, pts = kern.points(th, brot[act], npos[act],
+                                          None if link is None else link[act])
             err = ta - pts
             going = err.norm(dim=-1).amax(-1) >= tol
             if not bool(going.all()):
@@ -470,7 +496,7 @@ def _solve(
             act = act[norm.amax((1, 2)) >= 1e-7]
             if not len(act):
                 break
-        _, _, pts = kern.points(theta, brot, npos)
+        _, _, pts = kern.points(theta, brot, npos, link)
         kept = torch.as_tensor(frames[keep])
         theta_out[kept] = theta[torch.as_tensor(keep)]
         resid_out[kept] = (tgt - pts).norm(dim=-1).max(-1).values[torch.as_tensor(keep)]

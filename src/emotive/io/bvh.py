@@ -31,10 +31,10 @@ from emotive.io.bvh_limits import (
     UNITS,
     angle_problem,
     detect_unit,
-    figure_height,
     frame_time_problem,
     length_problem,
     size_problem,
+    standing_height,
 )
 from emotive.transforms.np_rotations import euler_to_quaternion, quaternion_to_euler
 
@@ -351,15 +351,12 @@ def _parse_frames(path: str, lines: list[str], first: int, frames: int, width: i
     return values
 
 
-def _resolve_unit(unit: str, joints: list[_Joint], parents: np.ndarray) -> str:
-    if unit != "auto":
-        if unit not in UNITS:
-            raise ValueError(f"unit must be 'auto' or one of {sorted(UNITS)}, got {unit!r}")
-        return unit
-    offsets = np.stack([j.offset for j in joints])
-    esp = np.array([n for n, j in enumerate(joints) for _ in j.end_sites], dtype=np.int64)
-    eso = np.array([o for j in joints for o in j.end_sites]).reshape(-1, 3)
-    return detect_unit(figure_height(offsets, parents, esp, eso))
+def _resolve_unit(unit: str, skeleton_file: Skeleton) -> tuple[str, float]:
+    """The file's unit (``unit``, or detected when ``"auto"``) and the figure's height in it."""
+    if unit != "auto" and unit not in UNITS:
+        raise ValueError(f"unit must be 'auto' or one of {sorted(UNITS)}, got {unit!r}")
+    height_file = standing_height(skeleton_file)
+    return (detect_unit(height_file) if unit == "auto" else unit), height_file
 
 
 def _check_values(path: str, joints: list[_Joint], values: np.ndarray, scale: float) -> None:
@@ -408,12 +405,14 @@ def read_bvh(path: str | os.PathLike, unit: str = "auto") -> Motion:
 
     Args:
         path: the ``.bvh`` file.
-        unit: the file's length unit, one of ``"m"``, ``"cm"``, ``"mm"``, ``"in"``, or
-            ``"auto"``: the unit that makes the rest pose's standing height 1.2-2.2 m
-            (:func:`emotive.io.bvh_limits.detect_unit`).
+        unit: the file's length unit, one of ``"m"``, ``"cm"``, ``"mm"``, ``"in"``, ``"cmu"``
+            (CMU's 1/0.45 inch), or ``"auto"``: the unit that makes the figure's standing
+            height 1.2-2.2 m (:func:`emotive.io.bvh_limits.standing_height`,
+            :func:`emotive.io.bvh_limits.detect_unit`).
 
     Returns:
-        The motion, with ``metadata`` holding ``name``, ``source`` and ``file_unit``.
+        The motion, with ``metadata`` holding ``name``, ``source``, ``file_unit`` and
+        ``height_m`` (the figure's standing height in metres).
 
     Raises:
         BVHError: the file is missing, not a regular BVH text file, malformed or beyond
@@ -439,14 +438,13 @@ def read_bvh(path: str | os.PathLike, unit: str = "auto") -> Motion:
     names = tuple(j.name for j in joints)
     parents = np.array([j.parent for j in joints], dtype=np.int64)
     offsets = np.stack([j.offset for j in joints])
-    file_unit = _resolve_unit(unit, joints, parents)
-    scale = UNITS[file_unit]
-    _check_values(str(path), joints, values, scale)
     esp = np.array([n for n, j in enumerate(joints) for _ in j.end_sites], dtype=np.int64)
     eso = np.array([o for j in joints for o in j.end_sites]).reshape(-1, 3)
-    skeleton = Skeleton(
-        names, parents, offsets * scale, tuple(j.channels for j in joints), esp, eso * scale
-    )
+    skeleton_file = Skeleton(names, parents, offsets, tuple(j.channels for j in joints), esp, eso)
+    file_unit, height_file = _resolve_unit(unit, skeleton_file)
+    scale = UNITS[file_unit]
+    _check_values(str(path), joints, values, scale)
+    skeleton = skeleton_file.scaled(scale)
 
     rotations, positions = _channels_to_pose(joints, values, skeleton.offsets, scale)
     fps = 1.0 / frame_time
@@ -455,12 +453,41 @@ def read_bvh(path: str | os.PathLike, unit: str = "auto") -> Motion:
         fps = float(round(fps))
     return Motion(
         skeleton, rotations, positions, fps,
-        metadata={"name": path.stem, "source": str(path), "file_unit": file_unit},
+        metadata={"name": path.stem, "source": str(path), "file_unit": file_unit,
+                  "height_m": height_file * scale},
     )
 
 
 def _format_offset(values: np.ndarray) -> str:
     return " ".join(f"{v:.9g}" for v in values)
+
+
+def _written_channels(skeleton: Skeleton, joint: int) -> tuple[str, ...]:
+    """The channels a joint is written with: its own, plus rotations if it has none.
+
+    BVH readers (this one included) expect three rotation channels on every joint; a joint
+    fixed at the identity is written with rotation channels that hold zeros.
+    """
+    chans = tuple(skeleton.channels[joint])
+    if any(c in ROTATION_CHANNELS for c in chans):
+        return chans
+    return (*chans, "Zrotation", "Xrotation", "Yrotation")
+
+
+def depth_first_order(skeleton: Skeleton) -> list[int]:
+    """Joint indices in the order a BVH file lists them: depth first, children in index order.
+
+    The hierarchy and the frame data of a written file both follow it, so a rig whose joints
+    are listed breadth first (SMPL's own order) is written correctly.
+    """
+    kids = skeleton.children
+    order: list[int] = []
+    stack = [j for j, p in enumerate(skeleton.parents) if p < 0][::-1]
+    while stack:
+        j = stack.pop()
+        order.append(j)
+        stack.extend(reversed(kids[j]))
+    return order
 
 
 def _header_lines(skeleton: Skeleton, scale: float) -> list[str]:
@@ -476,7 +503,7 @@ def _header_lines(skeleton: Skeleton, scale: float) -> list[str]:
         out.append(f"{pad}{kind} {skeleton.names[j]}")
         out.append(f"{pad}{{")
         out.append(f"{pad}  OFFSET {_format_offset(skeleton.offsets[j] / scale)}")
-        chans = skeleton.channels[j]
+        chans = _written_channels(skeleton, j)
         out.append(f"{pad}  CHANNELS {len(chans)} {' '.join(chans)}")
         for c in kids[j]:
             emit(c, depth + 1)
@@ -499,10 +526,11 @@ def _header_lines(skeleton: Skeleton, scale: float) -> list[str]:
 def _frame_values(motion: Motion, scale: float) -> np.ndarray:
     sk = motion.skeleton
     columns = []
-    for j in range(sk.num_joints):
-        order = sk.rotation_order(j)
-        euler = np.rad2deg(quaternion_to_euler(motion.rotations[:, j], order)) if order else None
-        for c in sk.channels[j]:
+    for j in depth_first_order(sk):
+        chans = _written_channels(sk, j)
+        order = "".join(c[0] for c in chans if c in ROTATION_CHANNELS)
+        euler = np.rad2deg(quaternion_to_euler(motion.rotations[:, j], order))
+        for c in chans:
             if c in POSITION_CHANNELS:
                 columns.append(motion.positions[:, j, POSITION_CHANNELS.index(c)] / scale)
             else:
@@ -514,9 +542,7 @@ def _detectable_unit(skeleton: Skeleton, preferred: str) -> str:
     """``preferred`` if :func:`read_bvh` detects it back from a file in it, else one it does."""
     if preferred not in UNITS:
         return preferred
-    height_m = figure_height(
-        skeleton.offsets, skeleton.parents, skeleton.end_site_parents, skeleton.end_site_offsets
-    )
+    height_m = standing_height(skeleton)
     for unit in (preferred, "m", "mm"):
         if detect_unit(height_m / UNITS[unit]) == unit:
             return unit

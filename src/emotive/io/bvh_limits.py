@@ -6,7 +6,8 @@ than :data:`MAX_JOINTS` joints or :data:`MAX_FRAMES` frames, a frame rate outsid
 :data:`MIN_FPS`-:data:`MAX_FPS`, a length beyond :data:`MAX_LENGTH_M` metres or an angle
 beyond :data:`MAX_ANGLE_DEG` degrees. ``docs/limits.md`` states every limit and why.
 
-The length unit is detected from the figure's standing height (:func:`figure_height`), in
+The length unit is detected from the figure's standing height (:func:`standing_height`: from
+its joint roles when they resolve, else the rest pose's extent, :func:`figure_height`), in
 file units, see :func:`detect_unit`. Lengths are in metres unless named ``*_file`` (file
 units). ``J`` = joints, ``E`` = end sites.
 """
@@ -15,8 +16,13 @@ from __future__ import annotations
 
 import numpy as np
 
-#: Metres per file unit for the units a BVH file may use.
-UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254}
+from emotive.core.roles import match_roles
+from emotive.core.skeleton import Skeleton
+
+#: Metres per file unit for the units a BVH file may use. ``"cmu"`` is the length unit of the
+#: CMU motion-capture ASF files (and the BVH files converted from them): 1/0.45 inches, so a
+#: 1.7 m actor stands about 30 units tall.
+UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254, "cmu": 0.0254 / 0.45}
 
 #: Largest file read (1 GiB): 60 million channel values written with 9 digits fit in it.
 MAX_FILE_BYTES = 1 << 30
@@ -40,6 +46,11 @@ MAX_LENGTH_M = 1000.0
 MAX_ANGLE_DEG = 1e5
 #: Standing height of a humanoid, in metres; the detected unit puts the figure in it.
 HUMAN_HEIGHT_M = (1.2, 2.2)
+#: Share of the foot (ankle to toe) that stands for the ankle's height above the ground.
+ANKLE_HEIGHT_PER_FOOT = 0.5
+#: Least share of the legs-and-torso length that the skull adds above the head joint (the
+#: Bandai rig's head joint sits at the top of the neck and has no head-top joint).
+HEAD_TOP_PER_BODY = 0.15
 
 
 def frame_time_problem(frame_time: float) -> str | None:
@@ -170,19 +181,103 @@ def figure_height(
     return float(np.ptp(points, axis=0).max()) if len(points) > 1 else 0.0
 
 
+def _bone_lengths(skeleton: Skeleton) -> tuple[np.ndarray, np.ndarray]:
+    """Parents and bone lengths of the ``(J + E)`` joints then end sites (roots: 0)."""
+    parents = np.concatenate((skeleton.parents, skeleton.end_site_parents)).astype(np.int64)
+    lengths = np.linalg.norm(np.concatenate((skeleton.offsets, skeleton.end_site_offsets)),
+                             axis=1)
+    lengths[: skeleton.num_joints][skeleton.parents < 0] = 0.0
+    return parents, lengths
+
+
+def _chain_length(parents: np.ndarray, lengths: np.ndarray, top: int, bottom: int) -> float:
+    """Summed bone length from ``top`` down to its descendant ``bottom`` (NaN if it is not)."""
+    total, k = 0.0, bottom
+    while k != top:
+        if k < 0:
+            return float("nan")
+        total += float(lengths[k])
+        k = int(parents[k])
+    return total
+
+
+def _reach(parents: np.ndarray, lengths: np.ndarray, top: int) -> float:
+    """The longest summed bone length from ``top`` down to any point below it."""
+    best = 0.0
+    for k in range(len(parents)):
+        length = _chain_length(parents, lengths, top, k)
+        if length == length:
+            best = max(best, length)
+    return best
+
+
+def role_height(skeleton: Skeleton, index: dict[str, int]) -> float:
+    """Standing height from the bone lengths between joint roles, whatever the rest pose.
+
+    Legs (hip to knee to ankle, the longer side), the ankle's height
+    (:data:`ANKLE_HEIGHT_PER_FOOT` of the foot), the torso and neck (root to head) and the
+    skull above the head joint (its longest chain of bones and end sites, at least
+    :data:`HEAD_TOP_PER_BODY` of the rest). Bone lengths do not change with the rest pose,
+    so T-pose, A-pose and rigs laid along their bone axes measure alike, and arm span and
+    extra joints (fingers, twist bones, ``LHipJoint``) do not count.
+
+    Args:
+        skeleton: the rig, lengths in any unit.
+        index: role -> index into the ``(J + E)`` array (every role of
+            :data:`emotive.core.roles.ROLES`).
+
+    Returns:
+        The height in the rig's unit, NaN when the roles do not lie on one tree path.
+    """
+    parents, lengths = _bone_lengths(skeleton)
+
+    def chain(top: str, bottom: str) -> float:
+        return _chain_length(parents, lengths, index[top], index[bottom])
+
+    legs = max(chain(f"{s}_hip", f"{s}_knee") + chain(f"{s}_knee", f"{s}_ankle")
+               for s in "lr")
+    ankle = ANKLE_HEIGHT_PER_FOOT * max(chain(f"{s}_ankle", f"{s}_toe") for s in "lr")
+    torso = chain("root", "head")
+    skull = max(_reach(parents, lengths, index["head"]), HEAD_TOP_PER_BODY * (legs + torso))
+    return legs + ankle + torso + skull
+
+
+def standing_height(skeleton: Skeleton) -> float:
+    """The figure's standing height in its own unit.
+
+    From the joint roles (:func:`role_height`) when the rig's names or shape resolve every
+    role, else from the rest pose's extent (:func:`figure_height`).
+
+    Args:
+        skeleton: the rig, lengths in any unit.
+
+    Returns:
+        The height, ``0.0`` for a single joint without end sites.
+    """
+    # Absurd offsets (refused later by :func:`length_problem`) must not warn here.
+    with np.errstate(all="ignore"):
+        _, index, missing = match_roles(skeleton)
+        height = role_height(skeleton, index) if not missing else float("nan")
+    if np.isfinite(height) and height > 0:
+        return height
+    return figure_height(skeleton.offsets, skeleton.parents, skeleton.end_site_parents,
+                         skeleton.end_site_offsets)
+
+
 def detect_unit(height_file: float) -> str:
     """The length unit that makes a figure ``height_file`` file units tall a humanoid.
 
-    The unit whose :data:`HUMAN_HEIGHT_M` range holds the height; between two ranges the
-    nearer one (by ratio), except that the gap between the inch range (47-87 units) and the
-    centimetre range (120-220 units) goes to centimetres: small centimetre rigs are far more
-    common than giant inch ones, and it keeps every file read before inches were detected.
+    The unit whose :data:`HUMAN_HEIGHT_M` range holds the height (metres 1.2-2.2, CMU units
+    21-39, inches 47-87, centimetres 120-220, millimetres 1200-2200); between two ranges the
+    nearer one (by ratio), except that the gap between the inch range and the centimetre
+    range goes to centimetres: small centimetre rigs are far more common than giant inch
+    ones, and it keeps every file read before inches were detected.
 
     Args:
-        height_file: standing height from :func:`figure_height`, in file units.
+        height_file: standing height from :func:`standing_height`, in file units.
 
     Returns:
-        One of ``"m"``, ``"in"``, ``"cm"``, ``"mm"``.
+        A key of :data:`UNITS`: ``"m"``, ``"cmu"``, ``"in"``, ``"cm"`` or ``"mm"``.
     """
     low, high = HUMAN_HEIGHT_M
     inch_top = high / UNITS["in"]

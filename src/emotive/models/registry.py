@@ -228,7 +228,8 @@ _ENTRIES = (
                                "default 0.7."),
             ModelOption("input_style", "The input's style if known (neutral, ...)."),
             ModelOption("action", "The input's action if known (walk, run, ...)."),
-            ModelOption("roles", 'Role map of the input rig: "bandai", "cmu" or a JSON file.'),
+            ModelOption("roles", "Role map of the input rig: a family name (bandai, cmu, mixamo, "
+                        "unreal, unity, vrm, smpl, smplx) or a JSON file; default: detected."),
         ),
     ),
     ModelEntry(

@@ -1,7 +1,8 @@
-"""Files of any generated motion: BVH, NPZ and a stick-figure preview.
+"""Files of any generated motion: BVH or glTF, NPZ and a stick-figure preview.
 
-Files of any generated motion (:class:`~emotive.models.api.Generated`): BVH on the model's
-rig, NPZ, and a stick-figure preview captioned with the current emotion.
+Files of any generated motion (:class:`~emotive.models.api.Generated`): BVH or glTF (``.glb``,
+``.gltf``: a skinned mannequin on the model's rig, :mod:`emotive.io.gltf`), NPZ, and a
+stick-figure preview captioned with the current emotion.
 
 Every file is written at the motion's own frame rate and atomically
 (:func:`emotive.io.atomic.atomic_output`), so an error never leaves a half-written file, and
@@ -27,15 +28,15 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from emotive.io.atomic import atomic_output
-from emotive.io.bvh import write_bvh
+from emotive.io.motion_files import MOTION_SUFFIXES, write_motion
 from emotive.io.outputs import PREVIEW_SUFFIXES, check_output
 from emotive.render.preview import render_preview
 
 if TYPE_CHECKING:
     from emotive.models.api import Generated
 
-#: Suffixes of the main output.
-OUT_SUFFIXES = (".bvh", ".npz")
+#: Suffixes of the main output: a motion file (BVH, glTF) or the NPZ.
+OUT_SUFFIXES = (*MOTION_SUFFIXES, ".npz")
 
 
 def captions(emotion: np.ndarray, labels: tuple[str, ...], top: int = 2) -> list[str]:
@@ -107,8 +108,8 @@ def write_generated(generated: Generated, out: Path, npz: Path | None = None,
                     preview: Path | None = None, progress: bool = False) -> list[Path]:
     """Write a generated motion to ``out``, and optionally an NPZ and a preview.
 
-    Write a generated motion to ``out`` (``.bvh`` or ``.npz``), and optionally an NPZ and a
-    preview.
+    Write a generated motion to ``out`` (``.bvh``, ``.glb``, ``.gltf`` or ``.npz``), and
+    optionally an NPZ and a preview.
 
     Args:
         generated: the model's output.
@@ -130,8 +131,8 @@ def write_generated(generated: Generated, out: Path, npz: Path | None = None,
         check_output(npz, (".npz",), "--npz")
     if preview is not None:
         check_output(preview, PREVIEW_SUFFIXES, "--preview")
-    if out.suffix.lower() == ".bvh":
-        writers = [(out, lambda: write_bvh(generated.motion, out))]
+    if out.suffix.lower() in MOTION_SUFFIXES:
+        writers = [(out, lambda: write_motion(generated.motion, out))]
     else:
         writers = [(out, lambda: write_npz(generated, out))]
     if npz is not None:

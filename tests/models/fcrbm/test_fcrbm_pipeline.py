@@ -147,7 +147,9 @@ def test_bad_clips_raise():
     with pytest.raises(DataError, match="NaN"):
         frame_vectors(m.replace(rotations=rot))
     sk = m.skeleton
-    odd = Skeleton(tuple(f"bone{j}" for j in range(sk.num_joints)), sk.parents, sk.offsets)
+    # Unknown names on a rest pose that tells neither left from right nor legs from arms.
+    odd = Skeleton(tuple(f"bone{j}" for j in range(sk.num_joints)), sk.parents,
+                   np.tile([0.0, 0.1, 0.0], (sk.num_joints, 1)))
     with pytest.raises(RigError, match="joint roles"):
         frame_vectors(Motion(odd, m.rotations, m.positions, FPS))
 
@@ -554,18 +556,22 @@ def test_the_root_path_is_rebuilt_from_the_feet_unless_asked_for_the_models(chec
         decode_frames(model, frames, root="hips")
 
 
-def test_generate_command_refuses_a_primer_from_another_rig(checkpoint, tmp_path):
+def test_generate_command_refuses_a_primer_that_is_no_humanoid(checkpoint, tmp_path):
+    """A primer on any humanoid rig is retargeted; one that is no humanoid is refused."""
+    from emotive.errors import RigError
     from emotive.io.bvh import write_bvh
 
-    m = walk(20)
-    sk = m.skeleton
-    other = Skeleton(tuple(f"{n}_x" for n in sk.names), sk.parents, sk.offsets,
-                     end_site_parents=sk.end_site_parents, end_site_offsets=sk.end_site_offsets)
-    primer = write_bvh(Motion(other, m.rotations, m.positions, FPS), tmp_path / "p.bvh")
+    chain = Skeleton(("A", "B", "C"), np.array([-1, 0, 1]),
+                     np.array([[0.0, 0.9, 0.0], [0.0, 0.4, 0.0], [0.0, 0.4, 0.0]]),
+                     end_site_parents=[2], end_site_offsets=[[0.0, 0.1, 0.0]])
+    rot = np.zeros((20, 3, 4))
+    rot[..., 0] = 1.0
+    primer = write_bvh(Motion(chain, rot, np.broadcast_to(chain.offsets, (20, 3, 3)).copy(),
+                              FPS), tmp_path / "p.bvh")
     result = invoke_fcrbm("generate", "--model", checkpoint, "--emotion", "sad", "--primer",
                           primer, "--seconds", 1, "--out", tmp_path / "x.bvh")
-    assert isinstance(result.exception, FCRBMInputError)
-    assert "model's rig" in str(result.exception)
+    assert isinstance(result.exception, RigError | FCRBMInputError), result.exception
+    assert "another rig" in str(result.exception)
     assert not (tmp_path / "x.bvh").exists()
 
 

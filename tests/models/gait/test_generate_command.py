@@ -16,7 +16,6 @@ from emotive.io.bvh import read_bvh, write_bvh
 from emotive.models.gait.model import default_checkpoint_path, load_gait_model
 from emotive.models.gait.walks import generate_walks
 from emotive.paths import circle
-from rigs import RIG
 
 
 def run(*args: str, cwd=None) -> subprocess.CompletedProcess:
@@ -91,12 +90,13 @@ def test_generate_an_emotion_schedule_along_waypoints(tmp_path):
 
 
 def _other_rig_clip(path):
-    names = tuple(f"J{k}" for k in range(len(RIG)))
-    sk = Skeleton(names, np.array([r[1] for r in RIG]), np.array([r[2] for r in RIG], float))
-    rot = np.zeros((10, len(RIG), 4))
+    """A clip of a three-joint chain: no humanoid, so no primer for any humanoid model."""
+    sk = Skeleton(("A", "B", "C"), np.array([-1, 0, 1]),
+                  np.array([[0.0, 0.9, 0.0], [0.0, 0.4, 0.0], [0.0, 0.4, 0.0]]),
+                  end_site_parents=[2], end_site_offsets=[[0.0, 0.1, 0.0]])
+    rot = np.zeros((10, 3, 4))
     rot[..., 0] = 1
-    write_bvh(Motion(sk, rot, np.broadcast_to(sk.offsets, (10, len(RIG), 3)).copy(), 30.0),
-              path)
+    write_bvh(Motion(sk, rot, np.broadcast_to(sk.offsets, (10, 3, 3)).copy(), 30.0), path)
 
 
 @pytest.mark.parametrize("args, message", [

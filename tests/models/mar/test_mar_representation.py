@@ -49,8 +49,9 @@ def test_lengths_are_in_leg_lengths_so_a_bigger_rig_encodes_alike():
 
 def test_bad_rigs_and_nan_frames_raise_typed_errors():
     bad = styled("walk", "neutral", frames=10, rename={"UpperLeg_L": "thigh"})
+    # The Bandai names lack the renamed joint (without a map its shape would name it).
     with pytest.raises(RigMappingError, match=r"synthetic_walk_neutral_0.*--roles"):
-        RigCodec.for_motion(bad)
+        RigCodec.for_motion(bad, "bandai")
     motion = styled("walk", "neutral", frames=10)
     rot = motion.rotations.copy()
     rot[4, 3, 0] = np.nan

@@ -111,8 +111,9 @@ def test_another_rig_is_retargeted_and_written_back_on_its_own_rig(mar_db, mar_s
     rename = {"Hips": "pelvis", "LowerArm_L": "forearm_l", "UpperLeg_R": "thigh_r"}
     inp = styled("walk", "neutral", take=2, frames=45, rename=rename, scale=1.2)
     roles = {**BANDAI, "root": "pelvis", "l_elbow": "forearm_l", "r_hip": "thigh_r"}
+    # The Bandai names lack the renamed joints (without a map the rig's shape names them).
     with pytest.raises(RigMappingError, match=r"synthetic_walk_neutral_2.*roles"):
-        transfer_motion(inp, mar_db, "proud", search=mar_search, pin=False)
+        transfer_motion(inp, mar_db, "proud", role_map="bandai", search=mar_search, pin=False)
     out = transfer_motion(inp, mar_db, "proud", role_map=roles, search=mar_search,
                           pin=False).motion
     assert out.skeleton.names == inp.skeleton.names and out.skeleton.same_as(inp.skeleton)

@@ -30,7 +30,7 @@ from emotive.core.motion import Motion
 from emotive.core.ops import resample
 from emotive.data.emotion import Emotion, EmotionSchedule, coerce_blend
 from emotive.errors import EmotionError
-from emotive.ik import pin_feet
+from emotive.ik import IKResult, pin_feet, resolve_chains
 from emotive.models.mar.config import TransferError
 from emotive.models.mar.database import MARDatabase
 from emotive.models.mar.regression import METHODS, predict, standardize, track_rows
@@ -277,6 +277,25 @@ def _retime(frames: list[TransferFrame], codec: RigCodec, fps: float) -> tuple[
     return rot, pos, at(contact), source
 
 
+def _unpin_failed(motion: Motion, pinned: IKResult) -> Motion:
+    """The pinned clip, with ``motion``'s own leg pose where a pin could not be met.
+
+    A pin held to the end of a long contact run can lie beyond the stretched leg; the solver
+    then ends far off target: on a CMU-style relayout of a real walk translated to angry, a
+    toe 1.26 m off, thrown above the hips for a frame (34 body heights per second once
+    retargeted back). Those frames (``off_target``) keep the unpinned leg. Only inputs from
+    other rigs take this path, so the outputs on the database's own rig stay as recorded.
+    """
+    failed = {name: f for name, f in pinned.off_target.items() if len(f)}
+    if not failed:
+        return pinned.motion
+    rot = pinned.motion.rotations.copy()
+    for name, frames in failed.items():
+        joints = resolve_chains(motion.skeleton, motion, names=(name,))[name].joints
+        rot[np.ix_(frames, joints)] = motion.rotations[np.ix_(frames, joints)]
+    return pinned.motion.replace(rotations=rot)
+
+
 def transfer_motion(
     motion: Motion,
     db: MARDatabase,
@@ -350,7 +369,8 @@ def transfer_motion(
     out = Motion(work.skeleton, rot, pos, db.config.fps, meta)
     pinned = False
     if pin and contacts.any():
-        out = pin_feet(out, contacts).motion
+        result = pin_feet(out, contacts)
+        out = _unpin_failed(out, result) if foreign else result.motion
         pinned = True
     if foreign:
         out = retarget(out, motion if motion.fps == db.config.fps

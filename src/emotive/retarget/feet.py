@@ -1,0 +1,159 @@
+"""Feet of a retargeted clip: where the ground is, how much the feet slide.
+
+Legend: ``T`` frames, ``J`` joints, ``E`` end sites.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from emotive.core.motion import Motion
+from emotive.core.roles import JointRoles, resolve_roles
+from emotive.features.contacts import FOOT_ROLES, ground_heights
+from emotive.ik import resolve_chains, solve_chains
+from emotive.transforms.np_rotations import quaternion_apply, quaternion_invert
+
+RoleMap = str | Path | dict[str, str] | None
+
+#: A foot target closer than this (metres) to where the foot is needs no IK.
+MOVED = 1e-5
+#: The leg chains of :mod:`emotive.ik`, left then right.
+LEGS = ("left_leg", "right_leg")
+
+#: A foot point this close to its floor (metres) counts as on the ground for :func:`foot_skate`.
+SKATE_HEIGHT = 0.02
+
+
+def lowest_ankle_height(points: np.ndarray, roles: JointRoles) -> float:
+    """Lowest height (Y, metres) either ankle reaches over a clip.
+
+    The ankle joint is the one foot point every rig places alike (toe joints and end sites
+    sit anywhere from the ball of the foot to the tip), so it is what puts the two rigs'
+    grounds in register.
+
+    Args:
+        points: ``(T, J + E, 3)`` world positions of joints then end sites, ``T >= 1``.
+        roles: the rig's resolved roles.
+    """
+    return float(points[:, roles.indices(("l_ankle", "r_ankle")), 1].min())
+
+
+def move_up(motion: Motion, height: float, mover: int) -> Motion:
+    """The clip moved ``height`` metres up the world's Y axis through joint ``mover``.
+
+    Args:
+        motion: the clip.
+        height: metres (negative moves down).
+        mover: the joint whose translation carries the world placement (the root role or the
+            animated joint above it).
+    """
+    if height == 0.0:
+        return motion
+    up = np.broadcast_to([0.0, height, 0.0], (motion.num_frames, 3))
+    parent = int(motion.skeleton.parents[mover])
+    if parent >= 0:
+        up = quaternion_apply(quaternion_invert(motion.global_transforms()[0][:, parent]), up)
+    positions = motion.positions.copy()
+    positions[:, mover] += up
+    return motion.replace(positions=positions)
+
+
+def foot_skate(motion: Motion, role_map: RoleMap = None,
+               height: float = SKATE_HEIGHT) -> float:
+    """Mean horizontal speed (m/s) of heels and toes while they touch the floor.
+
+    Each heel (``*_ankle``) and toe (``*_toe``) counts in the frames where it is within
+    ``height`` of its own floor height (its 5th percentile over the clip, as in
+    :func:`emotive.features.contacts.ground_heights`, which absorbs an ankle joint that sits
+    centimetres above the sole); its speed is the central-difference ``(x, z)`` velocity.
+    A clip whose points never come near the floor scores 0.
+
+    Args:
+        motion: the clip, ``T >= 2`` frames.
+        role_map: how to find the roles (see :func:`emotive.core.roles.resolve_roles`).
+        height: metres above the floor that count as touching it.
+
+    Returns:
+        The mean speed over every (point, frame) on the floor, m/s.
+    """
+    roles = resolve_roles(motion.skeleton, role_map)
+    idx = roles.indices(FOOT_ROLES)
+    feet = motion.positions_with_end_sites()[:, idx]
+    if len(feet) < 2:
+        return 0.0
+    low = ground_heights(feet) < height
+    speed = np.linalg.norm(np.gradient(feet[..., [0, 2]], axis=0), axis=-1) * motion.fps
+    return float(speed[low].mean()) if low.any() else 0.0
+
+
+def _runs(column: np.ndarray) -> list[tuple[int, int]]:
+    """``(start, stop)`` of each run of ``True`` in a ``(T,)`` bool column."""
+    edges = np.diff(np.concatenate(([0], column.astype(np.int8), [0])))
+    return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1), strict=True))
+
+
+def _planted_targets(world: np.ndarray, source: np.ndarray, contact: np.ndarray,
+                     scale: float, blend: int) -> np.ndarray:
+    """``(T, M, 3)`` foot targets: during each contact the source's horizontal motion, scaled.
+
+    Over a contact run the target's heel and toe move as the source's do, times ``scale``,
+    about their mean over the run; heights stay the target's. The correction fades out over
+    ``blend`` frames either side of the run.
+    """
+    n = len(world)
+    delta = np.zeros_like(world)
+    for a, b in _runs(contact):
+        wanted = world[a:b].mean(0) + scale * (source[a:b] - source[a:b].mean(0))
+        delta[a:b, :, [0, 2]] = (wanted - world[a:b])[..., [0, 2]]
+        for i in range(1, blend + 1):
+            w = 1.0 - i / (blend + 1)
+            if a - i >= 0 and not contact[a - i]:
+                delta[a - i] = w * delta[a]
+            if b - 1 + i < n and not contact[b - 1 + i]:
+                delta[b - 1 + i] = w * delta[b - 1]
+    return world + delta
+
+
+def plant_feet(motion: Motion, source_points: np.ndarray, source_roles: JointRoles,
+               contacts: np.ndarray, scale: float, role_map: RoleMap = None,
+               blend: int = 4) -> Motion:
+    """Feet planted in the source kept planted on the target, by IK on the leg chains.
+
+    While a source foot touches the ground, the target's heel and toe follow the source's
+    heel and toe horizontally, scaled like the root (so a planted source foot gives a
+    planted target foot, and the little a real foot rolls is kept); the leg chains are
+    re-solved from the clip's own pose (:func:`emotive.ik.solve_chains`) in the frames where
+    that moves a foot by more than :data:`MOVED` metres, and every other frame is kept as it
+    is (a rig whose feet already follow the source's, such as the source's own, is left
+    untouched).
+
+    Args:
+        motion: the retargeted clip, ``T`` frames.
+        source_points: ``(T, J + E, 3)`` world positions of the source's joints then end sites.
+        source_roles: the source's resolved roles.
+        contacts: ``(T, 2)`` bool, left then right foot of the source.
+        scale: the root motion's scale (target over source leg length).
+        role_map: the target's role map (see :func:`emotive.core.roles.resolve_roles`).
+        blend: frames over which the correction fades in and out.
+
+    Returns:
+        The clip with the leg chains re-solved where the feet had to move.
+    """
+    chains = resolve_chains(motion.skeleton, motion, role_map, names=LEGS)
+    points = motion.positions_with_end_sites()
+    rotations = motion.rotations.copy()
+    for side, name in enumerate(LEGS):
+        chain = chains[name]
+        world = points[:, chain.targets]
+        source = source_points[:, source_roles.indices(chain.target_roles)]
+        targets = _planted_targets(world, source, contacts[:, side], scale, blend)
+        frames = np.flatnonzero(np.abs(targets - world).max(axis=(1, 2)) > MOVED)
+        if len(frames) == 0:
+            continue
+        part = motion.replace(rotations=rotations[frames], positions=motion.positions[frames])
+        solved = solve_chains(part, {name: targets[frames]}, {name: chain}, frame="world",
+                              init="motion")
+        rotations[frames] = solved.motion.rotations
+    return motion.replace(rotations=rotations)
