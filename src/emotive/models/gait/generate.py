@@ -65,11 +65,13 @@ from emotive.data.emotion import Emotion, EmotionSchedule, coerce_emotion
 from emotive.errors import PathError, RigError
 from emotive.features.movement import LOWPASS_HZ
 from emotive.models.gait.affect import gait_affective
+from emotive.models.gait.agents import AgentBatch, empty_batch, joined, kept
 from emotive.models.gait.controls import MIN_TURN_FACTOR
 from emotive.models.gait.data import canonical_frames, clip_features
 from emotive.models.gait.model import GaitModel
 from emotive.models.gait.network import GaitInputs, same_hemisphere
-from emotive.paths import GroundPath
+from emotive.paths import GroundPath, waypoints
+from emotive.paths.bank import PathBank
 from emotive.transforms.kinematics import PoseFK
 from emotive.transforms.rotations import quaternion_multiply, yaw_quaternion
 
@@ -86,6 +88,12 @@ PATH_MERGE_SLOPE = 0.5
 #: per second.
 HEIGHT_RANGE = (-0.6, 0.4)
 MAX_SPEED = 8.0
+#: A "go to" target nearer than this (metres) stops the agent where it stands.
+MIN_TARGET_DISTANCE = 0.05
+#: A "go to" path leaves along the agent's heading for up to this many metres.
+TARGET_LEAD = 0.75
+#: Allowed per-agent pace factors (times the emotion's walking speed).
+PACE_RANGE = (0.5, 1.5)
 
 EmotionLike = Emotion | EmotionSchedule | str | Mapping[str, float] | np.ndarray
 
@@ -118,6 +126,19 @@ class _Agent:
     schedule: EmotionSchedule
     schedule_start: float
     constant: bool
+
+
+def check_pace(pace: float) -> float:
+    """``pace`` as a float if it lies in :data:`PACE_RANGE`.
+
+    Raises:
+        ValueError: outside the range or not finite.
+    """
+    lo, hi = PACE_RANGE
+    if not (math.isfinite(pace) and lo <= pace <= hi):
+        raise ValueError(f"pace must be between {lo:g} and {hi:g} times the emotion's walking "
+                         f"speed, got {pace!r}")
+    return float(pace)
 
 
 def to_model_schedule(emotion: EmotionLike, labels: Sequence[str]) -> EmotionSchedule:
@@ -182,23 +203,9 @@ class GaitGenerator:
         self._next_id = 0
         self._agents: dict[int, _Agent] = {}
         self._order: list[int] = []
-        self._groups: list[tuple[GroundPath, np.ndarray]] | None = None
-        j = c.skeleton.num_joints
-        self._state = net.initial_state(0, dtype=dtype)
-        self._rot = torch.zeros(0, j, 4, dtype=dtype)
-        self._root = torch.zeros(0, 3, dtype=dtype)
-        self._affective = torch.zeros(0, 18, dtype=dtype)
-        self._emotion = np.zeros((0, len(self.labels)))
-        # Per-agent float64 controls: phase, s_lowpass, arc position, smoothed delta,
-        # clock, curvature input, heading, path offset (x, z), stopping flag.
-        self._theta = np.zeros(0)
-        self._slp = np.zeros(0)
-        self._arc = np.zeros(0)
-        self._delta = np.zeros(0)
-        self._time = np.zeros(0)
-        self._kappa = np.zeros(0)
-        self._heading = np.zeros(0)
-        self._offset = np.zeros((0, 2))
+        self._paths = PathBank()
+        self._batch = empty_batch(net.initial_state(0, dtype=dtype), c.skeleton.num_joints,
+                                  len(self.labels), dtype)
 
     # ----------------------------------------------------------------------------- agents
 
@@ -212,7 +219,7 @@ class GaitGenerator:
 
     def add_agent(
         self, path: GroundPath, emotion: EmotionLike = "neutral", primer: Motion | None = None,
-        start: float = 0.0, seed: int | None = None,
+        start: float = 0.0, seed: int | None = None, pace: float = 1.0,
     ) -> int:
         """Add an agent standing on ``path`` at arc length ``start``; returns its id.
 
@@ -222,6 +229,8 @@ class GaitGenerator:
             primer: a clip on the model's rig to start from; ``None`` for the standing start.
             start: arc length (metres) where it starts.
             seed: seed of its starting phase (default: from the generator's seed and its id).
+            pace: factor on the emotion's walking speed, 0.5-1.5 (its step frequency changes
+                by the square root, the rest by longer or shorter strides).
 
         Raises:
             EmotionError: a bad emotion. PathError: not a path. RigError: a primer on another
@@ -232,6 +241,7 @@ class GaitGenerator:
         if not math.isfinite(start):
             raise PathError(f"start must be a finite arc length in metres, got {start}")
         schedule = to_model_schedule(emotion, self.labels)
+        pace = check_pace(pace)
         agent = self._next_id
         rng = np.random.default_rng([self.seed, agent] if seed is None else [int(seed)])
         m = schedule.at(0.0)
@@ -243,20 +253,14 @@ class GaitGenerator:
         self._next_id += 1
         self._agents[agent] = _Agent(path, schedule, 0.0, len(schedule.times) == 1)
         self._order.append(agent)
-        self._groups = None
-        self._state = torch.cat((self._state, state), 1)
-        self._rot = torch.cat((self._rot, rot[None]))
-        self._root = torch.cat((self._root, root[None]))
-        self._affective = torch.cat((self._affective, affective[None]))
-        self._emotion = np.vstack((self._emotion, m[None]))
-        self._theta = np.append(self._theta, theta)
-        self._slp = np.append(self._slp, slp)
-        self._arc = np.append(self._arc, float(start))
-        self._delta = np.append(self._delta, 0.0)
-        self._time = np.append(self._time, 0.0)
-        self._kappa = np.append(self._kappa, 0.0)
-        self._heading = np.append(self._heading, float(path.heading(float(start))))
-        self._offset = np.vstack((self._offset, np.zeros((1, 2))))
+        slot = self._paths.add(path)
+        new = AgentBatch(
+            state, rot[None], root[None], affective[None], m[None], np.array([theta]),
+            np.array([slp]), np.array([float(start)]), np.zeros(1), np.zeros(1), np.zeros(1),
+            np.array([float(path.heading(float(start)))]), np.zeros((1, 2)),
+            np.array([slot]), np.array([float(pace)]),
+        )
+        self._batch = joined(self._batch, new)
         return agent
 
     def remove_agent(self, agent: int) -> None:
@@ -266,17 +270,10 @@ class GaitGenerator:
             KeyError: no live agent has that id.
         """
         k = self._index(agent)
-        keep = [i for i in range(len(self._order)) if i != k]
-        idx = torch.as_tensor(keep, dtype=torch.long)
-        self._state = self._state[:, idx]
-        for name in ("_rot", "_root", "_affective"):
-            setattr(self, name, getattr(self, name)[idx])
-        for name in ("_emotion", "_theta", "_slp", "_arc", "_delta", "_time", "_kappa",
-                     "_heading", "_offset"):
-            setattr(self, name, getattr(self, name)[keep])
+        self._paths.release(int(self._batch.slot[k]))
+        self._batch = kept(self._batch, np.delete(np.arange(len(self._order)), k))
         del self._order[k]
         del self._agents[agent]
-        self._groups = None
 
     def set_emotion(self, agent: int, emotion: EmotionLike) -> None:
         """Give an agent a new emotion or schedule; a schedule's time 0 is now.
@@ -286,9 +283,9 @@ class GaitGenerator:
         """
         k = self._index(agent)
         schedule = to_model_schedule(emotion, self.labels)
-        self._agents[agent] = _Agent(self._agents[agent].path, schedule, float(self._time[k]),
-                                     len(schedule.times) == 1)
-        self._emotion[k] = schedule.at(0.0)
+        self._agents[agent] = _Agent(self._agents[agent].path, schedule,
+                                     float(self._batch.clock[k]), len(schedule.times) == 1)
+        self._batch.emotion[k] = schedule.at(0.0)
 
     def set_path(self, agent: int, path: GroundPath) -> None:
         """Send an agent along another path from its nearest point.
@@ -302,13 +299,64 @@ class GaitGenerator:
         if not isinstance(path, GroundPath):
             raise PathError(f"an agent needs a GroundPath to follow, got {type(path).__name__}")
         k = self._index(agent)
-        info = self._agents[agent]
-        here = info.path.position(self._arc[k]) + self._offset[k]
+        here = self._ground_position(k)
         arc, _ = path.nearest(here[None])
-        self._arc[k] = float(arc[0])
-        self._offset[k] = here - path.position(self._arc[k])
-        info.path = path
-        self._groups = None
+        self._follow(agent, k, path, float(arc[0]), here - path.position(float(arc[0])))
+
+    def set_target(self, agent: int, xz: Sequence[float]) -> GroundPath:
+        """Send an agent to a ground point ``(x, z)`` (metres) and stop it there.
+
+        The new path is a spline from where the agent stands, leaving along its heading, to
+        the target, so the agent neither jumps nor turns on the spot. A target closer than
+        :data:`MIN_TARGET_DISTANCE` leaves the agent where it is, stopping.
+
+        Returns:
+            The path the agent now follows.
+
+        Raises:
+            KeyError: unknown agent. PathError: a non-finite target or one beyond
+            :data:`emotive.paths.MAX_COORDINATE`.
+        """
+        k = self._index(agent)
+        target = np.asarray(xz, dtype=np.float64).reshape(-1)
+        if target.shape != (2,) or not np.isfinite(target).all():
+            raise PathError(f"set_target: the target must be two finite numbers (x, z) in "
+                            f"metres, got {xz!r}")
+        here = self._ground_position(k)
+        yaw = float(self._batch.heading[k])
+        facing = np.array([math.sin(yaw), math.cos(yaw)])
+        gap = float(np.linalg.norm(target - here))
+        if gap < MIN_TARGET_DISTANCE:
+            path = GroundPath.from_polyline(np.stack((here, here + 0.01 * facing)), name="target")
+        else:
+            lead = here + min(TARGET_LEAD, 0.4 * gap) * facing
+            path = waypoints(np.stack((here, lead, target)), name="target")
+        self._follow(agent, k, path, 0.0, np.zeros(2))
+        return path
+
+    def set_pace(self, agent: int, pace: float) -> None:
+        """Walk an agent faster or slower than its emotion does, by ``pace`` (0.5-1.5).
+
+        Raises:
+            KeyError: unknown agent. ValueError: ``pace`` outside :data:`PACE_RANGE`.
+        """
+        k = self._index(agent)
+        self._batch.pace[k] = check_pace(pace)
+
+    def _ground_position(self, k: int) -> np.ndarray:
+        """``(2,)`` where agent ``k`` (batch index) stands, path gap included."""
+        b = self._batch
+        return self._paths.position(b.slot[k:k + 1], b.arc[k:k + 1])[0] + b.offset[k]
+
+    def _follow(self, agent: int, k: int, path: GroundPath, arc: float, offset: np.ndarray
+                ) -> None:
+        """Put agent ``agent`` (batch index ``k``) on ``path`` at ``arc`` with a gap ``offset``."""
+        b = self._batch
+        self._paths.release(int(b.slot[k]))
+        b.slot[k] = self._paths.add(path)
+        b.arc[k] = arc
+        b.offset[k] = offset
+        self._agents[agent].path = path
 
     def _index(self, agent: int) -> int:
         try:
@@ -357,92 +405,70 @@ class GaitGenerator:
     # ----------------------------------------------------------------------------- stepping
 
     def _update_emotions(self) -> None:
+        b = self._batch
         for k, agent in enumerate(self._order):
             info = self._agents[agent]
             if not info.constant:
-                self._emotion[k] = info.schedule.at(self._time[k] - info.schedule_start)
+                b.emotion[k] = info.schedule.at(b.clock[k] - info.schedule_start)
 
-    def _turn_factor(self) -> np.ndarray:
-        """``(B,)`` the data's slowing in turns at each agent's point of its path."""
-        factor = np.ones(len(self._order))
+    def _turn_factor(self, curvature: np.ndarray) -> np.ndarray:
+        """``(B,)`` the data's slowing in turns at each agent's curvature ``(B,)`` (1/m)."""
         slowing = self.model.controls.turn_slowing
-        if slowing > 0:
-            for path, members in self._by_path():
-                k = np.abs(path.curvature(self._arc[members]))
-                factor[members] = np.maximum(1.0 - slowing * k, MIN_TURN_FACTOR)
-        return factor
-
-    def _by_path(self) -> list[tuple[GroundPath, np.ndarray]]:
-        """The agents grouped by the path they follow, ``(path, batch indices)``.
-
-        Kept until an agent is added or removed or changes path, so a step queries each path in one
-        call.
-        """
-        if self._groups is None:
-            groups: dict[int, tuple[GroundPath, list[int]]] = {}
-            for k, agent in enumerate(self._order):
-                path = self._agents[agent].path
-                groups.setdefault(id(path), (path, []))[1].append(k)
-            self._groups = [(path, np.asarray(members)) for path, members in groups.values()]
-        return self._groups
+        if slowing <= 0:
+            return np.ones(len(curvature))
+        return np.maximum(1.0 - slowing * np.abs(curvature), MIN_TURN_FACTOR)
 
     @torch.no_grad()
     def step(self) -> GaitFrame:
         """Advance every agent by one frame (``1 / fps`` seconds) and return the new frame."""
-        n = len(self._order)
+        b, bank = self._batch, self._paths
         dt = 1.0 / self.fps
-        m = torch.as_tensor(self._emotion, dtype=torch.float64)
-        omega = (m @ self._freq).numpy()
-        target = (m @ self._speed).numpy()
+        m = torch.as_tensor(b.emotion, dtype=torch.float64)
+        omega = (m @ self._freq).numpy() * np.sqrt(b.pace)
+        target = (m @ self._speed).numpy() * b.pace
         # Slow to a stop before the end of an open path.
-        remaining = np.full(n, np.inf)
-        for path, members in self._by_path():
-            if not path.closed:
-                remaining[members] = path.length - self._arc[members]
-        target = target * np.clip(remaining / STOP_DISTANCE, 0.0, 1.0) * self._turn_factor()
-        moving = np.where(target > 1e-9, np.clip(self._slp / np.maximum(target, 1e-9), 0, 1), 0)
+        remaining = np.where(bank.closed(b.slot), np.inf, bank.length(b.slot) - b.arc)
+        target = (target * np.clip(remaining / STOP_DISTANCE, 0.0, 1.0)
+                  * self._turn_factor(bank.curvature(b.slot, b.arc)))
+        slp = b.speed_lowpass
+        moving = np.where(target > 1e-9, np.clip(slp / np.maximum(target, 1e-9), 0, 1), 0)
         moving = np.where(remaining > STOP_DISTANCE, 1.0, moving)
         omega = omega * moving
-        movement = np.stack((np.sin(self._theta), np.cos(self._theta), omega, self._slp,
-                             self._kappa), 1)
+        movement = np.stack((np.sin(b.theta), np.cos(b.theta), omega, slp, b.kappa), 1)
         inputs = GaitInputs(
-            self._rot, self._affective if self.network.config.use_affective else None,
-            m.to(self.dtype), torch.as_tensor(movement, dtype=self.dtype), self._root,
+            b.rotations, b.affective if self.network.config.use_affective else None,
+            m.to(self.dtype), torch.as_tensor(movement, dtype=self.dtype), b.root,
         )
-        out, state = self.network.step(inputs, self._state)
+        out, state = self.network.step(inputs, b.state)
         rot = out.rotations
         finite = torch.isfinite(rot).all(-1).all(-1) & torch.isfinite(out.root).all(-1)
-        rot = torch.where(finite[:, None, None], same_hemisphere(rot, self._rot), self._rot)
+        rot = torch.where(finite[:, None, None], same_hemisphere(rot, b.rotations), b.rotations)
         rot[:, self._above] = torch.tensor([1.0, 0.0, 0.0, 0.0], dtype=self.dtype)
-        root = torch.where(finite[:, None], out.root, self._root)
-        state = torch.where(finite[None, :, None], state, self._state)
+        root = torch.where(finite[:, None], out.root, b.root)
+        state = torch.where(finite[None, :, None], state, b.state)
         h = root[:, 0].clamp(*HEIGHT_RANGE)
-        s = root[:, 1].clamp(0.0, MAX_SPEED / self.fps)
+        s_pf = root[:, 1].clamp(0.0, MAX_SPEED / self.fps)
         delta = root[:, 2].clamp(0.0, math.pi)
-        root = torch.stack((h, s, delta), 1)
-        s_np, delta_np = s.double().numpy(), delta.double().numpy()
-        # Controls and placement along the paths.
-        self._theta = np.mod(self._theta + omega, 2.0 * math.pi)
-        self._slp += self._alpha * (target - self._slp)
-        self._delta += self._alpha * (delta_np - self._delta)
-        self._arc = self._arc + np.minimum(s_np, np.maximum(remaining, 0.0))
-        xz = np.zeros((n, 2))
-        for path, members in self._by_path():
-            arc = self._arc[members]
-            curvature = path.curvature(arc)
-            side = np.clip(curvature / FULL_TURN_CURVATURE, -1.0, 1.0)
-            self._heading[members] = path.heading(arc) + side * self._delta[members]
-            self._kappa[members] = s_np[members] ** 2 * np.abs(curvature)
-            xz[members] = path.position(arc)
-        gap = np.linalg.norm(self._offset, axis=1)
+        root = torch.stack((h, s_pf, delta), 1)
+        s_np, delta_np = s_pf.double().numpy(), delta.double().numpy()
+        # Controls and placement along the paths, every agent at once.
+        arc = b.arc + np.minimum(s_np, np.maximum(remaining, 0.0))
+        curvature = bank.curvature(b.slot, arc)
+        side = np.clip(curvature / FULL_TURN_CURVATURE, -1.0, 1.0)
+        delta_lp = b.delta + self._alpha * (delta_np - b.delta)
+        gap = np.linalg.norm(b.offset, axis=1)
         shrink = np.maximum(gap - PATH_MERGE_SLOPE * s_np, 0.0) / np.maximum(gap, 1e-12)
-        self._offset *= shrink[:, None]
-        xz += self._offset
-        self._time += dt
-        self._update_emotions()
-        # Next inputs.
+        offset = b.offset * shrink[:, None]
         world_canon, affective = self._affective_of(rot)
-        self._state, self._rot, self._root, self._affective = state, rot, root, affective
+        self._batch = b.with_values(
+            state=state, rotations=rot, root=root, affective=affective,
+            theta=np.mod(b.theta + omega, 2.0 * math.pi),
+            speed_lowpass=slp + self._alpha * (target - slp), arc=arc, delta=delta_lp,
+            clock=b.clock + dt, kappa=s_np ** 2 * np.abs(curvature),
+            heading=bank.heading(b.slot, arc) + side * delta_lp, offset=offset,
+        )
+        self._update_emotions()
+        xz = bank.position(b.slot, arc) + offset
         return self._frame(rot, world_canon, h, xz)
 
     @torch.no_grad()
@@ -452,11 +478,10 @@ class GaitGenerator:
         The agents' current frame before any step (the standing pose or the primer's last
         frame placed on the path), so that a clip can start where the agents stand.
         """
-        xz = np.zeros((len(self._order), 2))
-        for path, members in self._by_path():
-            xz[members] = path.position(self._arc[members])
-        world_canon, _ = self._affective_of(self._rot)
-        return self._frame(self._rot, world_canon, self._root[:, 0], xz + self._offset)
+        b = self._batch
+        xz = self._paths.position(b.slot, b.arc) + b.offset
+        world_canon, _ = self._affective_of(b.rotations)
+        return self._frame(b.rotations, world_canon, b.root[:, 0], xz)
 
     def _frame(self, rot: torch.Tensor, world_canon: torch.Tensor, h: torch.Tensor,
                xz: np.ndarray) -> GaitFrame:
@@ -471,16 +496,16 @@ class GaitGenerator:
         mv = self.model.controls.mover
         rotations = rot.clone()
         rotations[:, mv] = quaternion_multiply(
-            yaw_quaternion(torch.as_tensor(self._heading, dtype=self.dtype)), rot[:, mv])
+            yaw_quaternion(torch.as_tensor(self._batch.heading, dtype=self.dtype)), rot[:, mv])
         positions = self._local.expand(len(rot), -1, -1).clone()
         height = self._base + h
         positions[:, mv, 0] = torch.as_tensor(xz[:, 0], dtype=self.dtype)
         positions[:, mv, 1] = height
         positions[:, mv, 2] = torch.as_tensor(xz[:, 1], dtype=self.dtype)
-        world = _place(world_canon.double().numpy(), self._heading, xz,
+        world = _place(world_canon.double().numpy(), self._batch.heading, xz,
                        (height - self._local[mv, 1]).double().numpy())
         return GaitFrame(tuple(self._order), rotations.double().numpy(),
-                         positions.double().numpy(), world, self._emotion.copy(), xz)
+                         positions.double().numpy(), world, self._batch.emotion.copy(), xz)
 
 
 def primer_features(primer: Motion, controls: Any) -> dict[str, np.ndarray]:
