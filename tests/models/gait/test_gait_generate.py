@@ -301,9 +301,9 @@ def test_pace_scales_the_emotions_target_speed_and_is_bounded(model):
     target = model.controls.speed[0]
     np.testing.assert_allclose(gen._batch.speed_lowpass, [0.5 * target, target, 1.5 * target],
                                rtol=0.02)
-    with pytest.raises(ValueError, match="between 0.5 and 1.5"):
+    with pytest.raises(ValueError, match=r"between 0\.5 and 1\.5"):
         gen.set_pace(slow, 2.0)
-    with pytest.raises(ValueError, match="between 0.5 and 1.5"):
+    with pytest.raises(ValueError, match=r"between 0\.5 and 1\.5"):
         gen.add_agent(line(), "happy", pace=float("nan"))
 
 
