@@ -169,9 +169,9 @@ def test_non_finite_predictions_keep_the_previous_pose():
 
 
 def test_standing_start_and_seed(model):
-    a = generate_walks(model, [line()], ["happy"], 1.0, seed=1, clean_feet=False)[0]
-    b = generate_walks(model, [line()], ["happy"], 1.0, seed=1, clean_feet=False)[0]
-    c = generate_walks(model, [line()], ["happy"], 1.0, seed=2, clean_feet=False)[0]
+    a = generate_walks(model, [line()], ["happy"], 1.0, seed=1, foot_lock=False)[0]
+    b = generate_walks(model, [line()], ["happy"], 1.0, seed=1, foot_lock=False)[0]
+    c = generate_walks(model, [line()], ["happy"], 1.0, seed=2, foot_lock=False)[0]
     np.testing.assert_array_equal(a.motion.rotations, b.motion.rotations)
     assert not np.allclose(a.motion.rotations, c.motion.rotations)
     # Frame 0 is the standing pose at the start of the path; 1 s is 30 steps after it.

@@ -14,6 +14,8 @@ from dataclasses import dataclass, fields, replace
 import numpy as np
 import torch
 
+from emotive.ik.foot_lock import LockState, initial_lock_state
+
 #: Axis of the agents in each field (the GRU state is ``(L, B, H)``; every other field leads
 #: with ``B``).
 BATCH_AXIS = {"state": 1}
@@ -39,6 +41,11 @@ class AgentBatch:
         offset: ``(B, 2)`` gap to the path still to close after a path change, metres.
         slot: ``(B,)`` the agent's path in the generator's :class:`~emotive.paths.bank.PathBank`.
         pace: ``(B,)`` factor on the emotion's walking speed (1 = as the data walks).
+        feet_previous: ``(B, 2, 2, 3)`` unlocked heel and toe positions of the last frame.
+        feet_planted: ``(B, 2, 2)`` which heels and toes are planted.
+        feet_anchor: ``(B, 2, 2)`` where each planted point is held ``(x, z)``.
+        feet_correction: ``(B, 2, 2)`` each foot's horizontal correction, metres (see
+            :mod:`emotive.ik.foot_lock`).
     """
 
     state: torch.Tensor
@@ -56,6 +63,21 @@ class AgentBatch:
     offset: np.ndarray
     slot: np.ndarray
     pace: np.ndarray
+    feet_previous: np.ndarray
+    feet_planted: np.ndarray
+    feet_anchor: np.ndarray
+    feet_correction: np.ndarray
+
+    @property
+    def feet(self) -> LockState:
+        """The foot-lock fields as the :func:`~emotive.ik.foot_lock.lock_feet` state."""
+        return LockState(self.feet_previous, self.feet_planted, self.feet_anchor,
+                         self.feet_correction)
+
+    def with_feet(self, feet: LockState, **changes: object) -> AgentBatch:
+        """A batch with the foot-lock state (and any other fields) replaced."""
+        return replace(self, feet_previous=feet.previous, feet_planted=feet.planted,
+                       feet_anchor=feet.anchor, feet_correction=feet.correction, **changes)
 
     def __len__(self) -> int:
         return len(self.theta)
@@ -78,7 +100,7 @@ def empty_batch(state: torch.Tensor, joints: int, labels: int, dtype: torch.dtyp
     return AgentBatch(
         state, torch.zeros(0, joints, 4, dtype=dtype), torch.zeros(0, 3, dtype=dtype),
         torch.zeros(0, 18, dtype=dtype), np.zeros((0, labels)), *(np.zeros(0) for _ in range(7)),
-        np.zeros((0, 2)), np.zeros(0, dtype=np.int64), np.zeros(0),
+        np.zeros((0, 2)), np.zeros(0, dtype=np.int64), np.zeros(0), *initial_lock_state(0),
     )
 
 
