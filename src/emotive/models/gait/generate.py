@@ -263,35 +263,58 @@ class GaitGenerator:
 
         Raises:
             EmotionError: a bad emotion. PathError: not a path. RigError: a primer on another
-            rig or too short.
+            rig or too short. ValueError: a pace outside :data:`PACE_RANGE`.
         """
-        if not isinstance(path, GroundPath):
-            raise PathError(f"an agent needs a GroundPath to follow, got {type(path).__name__}")
-        if not math.isfinite(start):
-            raise PathError(f"start must be a finite arc length in metres, got {start}")
-        schedule = to_model_schedule(emotion, self.labels)
-        pace = check_pace(pace)
-        agent = self._next_id
-        rng = np.random.default_rng([self.seed, agent] if seed is None else [int(seed)])
-        m = schedule.at(0.0)
+        return self.add_agents([path], [emotion], primer=primer, starts=[start],
+                               seeds=None if seed is None else [seed], paces=[pace])[0]
+
+    def add_agents(
+        self, paths: Sequence[GroundPath], emotions: Sequence[EmotionLike],
+        primer: Motion | None = None, starts: Sequence[float] | None = None,
+        seeds: Sequence[int] | None = None, paces: Sequence[float] | None = None,
+    ) -> list[int]:
+        """Add many agents at once (one warm-up of the network for all); returns their ids.
+
+        Arguments are as for :meth:`add_agent`, one entry per agent (``None``: the defaults).
+        Nothing is added if any entry is bad.
+        """
+        n = len(paths)
+        starts = [0.0] * n if starts is None else list(starts)
+        paces = [check_pace(p) for p in ([1.0] * n if paces is None else paces)]
+        if not (len(emotions) == len(starts) == len(paces) == n
+                and (seeds is None or len(seeds) == n)):
+            raise ValueError("give one emotion, start, pace and seed per path")
+        for path, start in zip(paths, starts, strict=True):
+            if not isinstance(path, GroundPath):
+                raise PathError(f"an agent needs a GroundPath to follow, got "
+                                f"{type(path).__name__}")
+            if not math.isfinite(start):
+                raise PathError(f"start must be a finite arc length in metres, got {start}")
+        schedules = [to_model_schedule(e, self.labels) for e in emotions]
+        ids = list(range(self._next_id, self._next_id + n))
+        m = np.stack([sch.at(0.0) for sch in schedules]) if n else np.zeros((0, len(self.labels)))
         with torch_threads(self.threads):
             if primer is None:
-                prime = self._standing_start(m, float(rng.uniform(0.0, 2.0 * math.pi)))
+                phases = np.array([
+                    np.random.default_rng([self.seed, a] if seeds is None else [int(seeds[k])])
+                    .uniform(0.0, 2.0 * math.pi) for k, a in enumerate(ids)])
+                state, rot, root, affective, theta, slp = self._standing_start(m, phases)
             else:
-                prime = self._primer_start(primer, m)
-        state, rot, root, affective, theta, slp = prime
-        self._next_id += 1
-        self._agents[agent] = _Agent(path, schedule, 0.0, len(schedule.times) == 1)
-        self._order.append(agent)
-        slot = self._paths.add(path)
+                state, rot, root, affective, theta, slp = self._primer_start(primer, m)
+        slots = [self._paths.add(path) for path in paths]
+        self._next_id += n
+        for a, path, sch in zip(ids, paths, schedules, strict=True):
+            self._agents[a] = _Agent(path, sch, 0.0, len(sch.times) == 1)
+        self._order.extend(ids)
+        arc = np.asarray(starts, dtype=np.float64)
+        heading = np.array([float(p.heading(float(s))) for p, s in zip(paths, arc, strict=True)])
         new = AgentBatch(
-            state, rot[None], root[None], affective[None], m[None], np.array([theta]),
-            np.array([slp]), np.array([float(start)]), np.zeros(1), np.zeros(1), np.zeros(1),
-            np.array([float(path.heading(float(start)))]), np.zeros((1, 2)),
-            np.array([slot]), np.array([float(pace)]), *initial_lock_state(1),
+            state, rot, root, affective, m, theta, slp, arc, np.zeros(n), np.zeros(n),
+            np.zeros(n), heading, np.zeros((n, 2)), np.array(slots, dtype=np.int64),
+            np.array(paces), *initial_lock_state(n),
         )
         self._batch = joined(self._batch, new)
-        return agent
+        return ids
 
     def remove_agent(self, agent: int) -> None:
         """Remove an agent.
@@ -402,35 +425,42 @@ class GaitGenerator:
         return pos, gait_affective(pos, self._roles)
 
     @torch.no_grad()
-    def _standing_start(self, m: np.ndarray, theta: float) -> tuple:
+    def _standing_start(self, m: np.ndarray, theta: np.ndarray) -> tuple:
+        """Network state after :data:`WARMUP_FRAMES` standing frames, for ``(N, C)`` emotions."""
         c = self.model.controls
+        n, k = len(m), WARMUP_FRAMES - 1
         rot = torch.as_tensor(c.standing_rotations, dtype=self.dtype)
         _, affective = self._affective_of(rot)
         root = torch.tensor([c.standing_height, 0.0, 0.0], dtype=self.dtype)
-        movement = torch.tensor([math.sin(theta), math.cos(theta), 0.0, 0.0, 0.0],
-                                dtype=self.dtype)
-        n = WARMUP_FRAMES - 1
+        movement = torch.zeros(n, k, 5, dtype=self.dtype)
+        movement[..., 0] = torch.as_tensor(np.sin(theta), dtype=self.dtype)[:, None]
+        movement[..., 1] = torch.as_tensor(np.cos(theta), dtype=self.dtype)[:, None]
         inputs = GaitInputs(
-            rot.expand(1, n, -1, -1), affective.expand(1, n, -1),
-            torch.as_tensor(m, dtype=self.dtype)[None], movement.expand(1, n, -1),
-            root.expand(1, n, -1),
+            rot.expand(n, k, -1, -1), affective.expand(n, k, -1),
+            torch.as_tensor(m, dtype=self.dtype), movement, root.expand(n, k, -1),
         )
         _, state = self.network(inputs)
-        return state, rot, root, affective, theta, 0.0
+        return (state, rot.expand(n, -1, -1).clone(), root.expand(n, -1).clone(),
+                affective.expand(n, -1).clone(), np.asarray(theta, dtype=np.float64),
+                np.zeros(n))
 
     @torch.no_grad()
     def _primer_start(self, primer: Motion, m: np.ndarray) -> tuple:
+        """Network state after the primer's frames, for ``(N, C)`` emotions."""
         f = primer_features(primer, self.model.controls)
+        n = len(m)
 
         def t(x: np.ndarray) -> torch.Tensor:
-            return torch.as_tensor(x, dtype=self.dtype)
+            x = torch.as_tensor(x, dtype=self.dtype)
+            return x.expand(n, *x.shape).clone()
 
-        inputs = GaitInputs(t(f["rotations"][None, :-1]), t(f["affective"][None, :-1]),
-                            t(m[None]), t(f["movement"][None, :-1]), t(f["root"][None, :-1]))
+        inputs = GaitInputs(t(f["rotations"][:-1]), t(f["affective"][:-1]),
+                            torch.as_tensor(m, dtype=self.dtype), t(f["movement"][:-1]),
+                            t(f["root"][:-1]))
         _, state = self.network(inputs)
         theta = math.atan2(f["movement"][-1, 0], f["movement"][-1, 1])
-        return (state, t(f["rotations"][-1]), t(f["root"][-1]), t(f["affective"][-1]), theta,
-                float(f["movement"][-1, 3]))
+        return (state, t(f["rotations"][-1]), t(f["root"][-1]), t(f["affective"][-1]),
+                np.full(n, theta), np.full(n, float(f["movement"][-1, 3])))
 
     # ----------------------------------------------------------------------------- stepping
 
