@@ -9,11 +9,12 @@ over the whole contact, which needs the future. A live stream has only the frame
    standing pose) and slow (under ``speed_on`` leg lengths per second, backward difference of
    the unlocked stream), and stays planted until it is clearly lifted or moving (``height_off``,
    ``speed_off``). A foot is in contact while either point is planted.
-2. **One horizontal correction per foot.** While the heel is planted the correction keeps the
-   heel where it was when it planted; when only the toe is planted (heel off) it keeps the
-   toe where it was when the heel lifted; both anchors are taken from the *corrected* foot,
-   so the correction never jumps. In swing the correction fades out geometrically
-   (:attr:`LockSettings.release`), a smooth release over a few frames.
+2. **One horizontal correction and one yaw per foot.** While the heel is planted the
+   correction keeps the heel where it was when it planted; when only the toe is planted
+   (heel off) it keeps the toe where it was when the heel lifted; a foot in contact also
+   keeps its heading (the yaw of heel -> toe) from when the contact began. Anchors are taken
+   from the *corrected* foot, so the corrections never jump. In swing the corrections fade
+   out geometrically (:attr:`LockSettings.release`), a smooth release over a few frames.
 3. **Two-bone IK per leg.** The ankle is moved by the correction (heights are left as
    predicted) by an analytic hip-knee-ankle solve that keeps the knee in its current bending
    plane and the foot's world orientation; everything below the ankle moves with it.
@@ -133,18 +134,23 @@ class LockState(NamedTuple):
         planted: ``(B, 2, 2)`` whether each heel and toe is planted.
         anchor: ``(B, 2, 2)`` ``(x, z)`` the planted point is held at.
         correction: ``(B, 2, 2)`` current horizontal correction of each foot, metres.
+        yaw_anchor: ``(B, 2)`` world yaw (radians) each foot in contact is held at.
+        yaw_correction: ``(B, 2)`` current yaw correction of each foot, radians.
     """
 
     previous: np.ndarray
     planted: np.ndarray
     anchor: np.ndarray
     correction: np.ndarray
+    yaw_anchor: np.ndarray
+    yaw_correction: np.ndarray
 
 
 def initial_lock_state(agents: int) -> LockState:
     """The state of ``agents`` new agents: nothing planted, no correction."""
     return LockState(np.full((agents, 2, 2, 3), np.nan), np.zeros((agents, 2, 2), dtype=bool),
-                     np.zeros((agents, 2, 2)), np.zeros((agents, 2, 2)))
+                     np.zeros((agents, 2, 2)), np.zeros((agents, 2, 2)), np.zeros((agents, 2)),
+                     np.zeros((agents, 2)))
 
 
 def _conj(q: np.ndarray) -> np.ndarray:
@@ -209,9 +215,32 @@ def _corrections(state: LockState, feet: np.ndarray, planted: np.ndarray,
     return correction, anchor
 
 
-def _two_bone(rig: LegRig, rotations: np.ndarray, points: np.ndarray, shift: np.ndarray
-              ) -> tuple[np.ndarray, np.ndarray]:
-    """Move each ankle by ``shift`` ``(B, 2, 3)``, hips fixed: the new rotations and points."""
+def _yaws(feet: np.ndarray) -> np.ndarray:
+    """``(B, 2)`` world yaw of each foot's heel -> toe direction (0 faces +Z)."""
+    d = feet[..., 1, :] - feet[..., 0, :]
+    return np.arctan2(d[..., 0], d[..., 2])
+
+
+def _yaw_corrections(state: LockState, yaw: np.ndarray, contact: np.ndarray,
+                     settings: LockSettings) -> tuple[np.ndarray, np.ndarray]:
+    """This frame's ``(B, 2)`` yaw corrections and anchors.
+
+    A foot in contact keeps the yaw it had (corrected) when the contact began; in swing the
+    correction fades out.
+    """
+    fresh = yaw + state.yaw_correction
+    anchor = np.where(contact & state.planted.any(-1), state.yaw_anchor, fresh)
+    gap = np.angle(np.exp(1j * (anchor - yaw)))
+    return np.where(contact, gap, settings.release * state.yaw_correction), anchor
+
+
+def _two_bone(rig: LegRig, rotations: np.ndarray, points: np.ndarray, shift: np.ndarray,
+              yaw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The rotations and points with each ankle moved and each foot turned, hips fixed.
+
+    Each ankle moves by ``shift`` ``(B, 2, 3)`` and each foot turns by ``yaw`` ``(B, 2)``
+    about the vertical through its ankle.
+    """
     parents_world = _world_rotations(rotations, rig.parents, rig.chain[:, 3])
     rotations, points = rotations.copy(), points.copy()
     for leg in range(2):
@@ -234,11 +263,16 @@ def _two_bone(rig: LegRig, rotations: np.ndarray, points: np.ndarray, shift: np.
         g_hip2 = qmul(r1, g_hip)
         r2 = _between(qapply(r1, a - k), a_new - k_new)
         g_knee2 = qmul(r2, qmul(r1, g_knee))
+        half = 0.5 * yaw[:, leg]
+        turn = np.stack((np.cos(half), np.zeros_like(half), np.sin(half), np.zeros_like(half)),
+                        -1)
         rotations[:, hip] = qnormalize(qmul(_conj(g_up), g_hip2))
         rotations[:, knee] = qnormalize(qmul(_conj(g_hip2), g_knee2))
-        rotations[:, ankle] = qnormalize(qmul(_conj(g_knee2), g_ankle))
+        rotations[:, ankle] = qnormalize(qmul(_conj(g_knee2), qmul(turn, g_ankle)))
         points[:, knee] = k_new
-        points[:, rig.below[leg]] += (a_new - a)[:, None]
+        below = rig.below[leg]
+        moved = points[:, below] - a[:, None]
+        points[:, below] = a_new[:, None] + qapply(turn[:, None], moved)
     return rotations, points
 
 
@@ -269,8 +303,11 @@ def lock_feet(rig: LegRig, state: LockState, rotations: np.ndarray, points: np.n
     if dragged.any():
         planted = planted & ~dragged[..., None]
         correction, anchor = _corrections(state, feet, planted, settings)
+    yaw_correction, yaw_anchor = _yaw_corrections(state, _yaws(feet), planted.any(-1),
+                                                  settings)
     shift = np.zeros((len(points), 2, 3))
     shift[..., 0], shift[..., 2] = correction[..., 0], correction[..., 1]
-    if np.abs(shift).max(initial=0.0) > 0:
-        rotations, points = _two_bone(rig, rotations, points, shift)
-    return rotations, points, LockState(feet, planted, anchor, correction)
+    if np.abs(shift).max(initial=0.0) > 0 or np.abs(yaw_correction).max(initial=0.0) > 0:
+        rotations, points = _two_bone(rig, rotations, points, shift, yaw_correction)
+    return rotations, points, LockState(feet, planted, anchor, correction, yaw_anchor,
+                                        yaw_correction)
