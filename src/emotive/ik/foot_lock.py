@@ -16,8 +16,10 @@ over the whole contact, which needs the future. A live stream has only the frame
    from the *corrected* foot, so the corrections never jump. In swing the corrections fade
    out geometrically (:attr:`LockSettings.release`), a smooth release over a few frames.
 3. **Two-bone IK per leg.** The ankle is moved by the correction (heights are left as
-   predicted) by an analytic hip-knee-ankle solve that keeps the knee in its current bending
-   plane and the foot's world orientation; everything below the ankle moves with it.
+   predicted, except that an ankle the straight leg cannot reach is lifted until it can) by
+   an analytic hip-knee-ankle solve that keeps the knee in its current bending plane and the
+   foot's world orientation (turned by the yaw correction); everything below the ankle moves
+   with it.
 
 Everything is batched over agents and legs with plain NumPy (:mod:`emotive.transforms.fast_np`).
 
@@ -234,6 +236,19 @@ def _yaw_corrections(state: LockState, yaw: np.ndarray, contact: np.ndarray,
     return np.where(contact, gap, settings.release * state.yaw_correction), anchor
 
 
+def _reachable(hip: np.ndarray, target: np.ndarray, reach: np.ndarray) -> np.ndarray:
+    """``(B, 3)`` targets beyond a leg's reach raised until the leg reaches them.
+
+    The horizontal position is what the lock holds, so an ankle the straight leg cannot
+    reach (at heel strike and toe-off) is lifted rather than left sliding.
+    """
+    flat = np.linalg.norm((target - hip)[:, [0, 2]], axis=-1)
+    lowest = hip[:, 1] - np.sqrt(np.maximum(reach**2 - flat**2, 0.0))
+    out = target.copy()
+    out[:, 1] = np.maximum(target[:, 1], lowest)
+    return out
+
+
 def _two_bone(rig: LegRig, rotations: np.ndarray, points: np.ndarray, shift: np.ndarray,
               yaw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The rotations and points with each ankle moved and each foot turned, hips fixed.
@@ -246,9 +261,9 @@ def _two_bone(rig: LegRig, rotations: np.ndarray, points: np.ndarray, shift: np.
     for leg in range(2):
         up, hip, knee, ankle = rig.chain[leg]
         h, k, a = points[:, hip], points[:, knee], points[:, ankle]
-        target = a + shift[:, leg]
         la = np.linalg.norm(k - h, axis=-1)
         lb = np.linalg.norm(a - k, axis=-1)
+        target = _reachable(h, a + shift[:, leg], la + lb - 1e-6)
         reach = target - h
         d = np.clip(np.linalg.norm(reach, axis=-1), np.abs(la - lb) + 1e-6, la + lb - 1e-6)
         u = reach / np.maximum(np.linalg.norm(reach, axis=-1, keepdims=True), 1e-12)
