@@ -7,7 +7,8 @@ import os
 import platform
 import statistics
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -29,6 +30,41 @@ def median_seconds(fn: Callable[[], Any], repeats: int = 5, warmup: int = 1) -> 
     return statistics.median(times)
 
 
+#: Torch intra-op threads every benchmark row runs on unless it says otherwise.
+PINNED_THREADS = 1
+#: Torch's thread count when the benchmarks started (its default on this machine).
+DEFAULT_THREADS = torch.get_num_threads()
+
+
+@contextmanager
+def pinned_threads(count: int = PINNED_THREADS) -> Iterator[None]:
+    """Run the block on ``count`` torch threads, then restore the previous count."""
+    before = torch.get_num_threads()
+    torch.set_num_threads(count)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(before)
+
+
+@contextmanager
+def unpinned_threads() -> Iterator[None]:
+    """Run the block on torch's own default thread count (for rows comparing with it)."""
+    with pinned_threads(DEFAULT_THREADS):
+        yield
+
+
+def resident_mb() -> float:
+    """Resident memory of this process, MB (Linux ``/proc``; 0 elsewhere)."""
+    try:
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1]) / 1024.0
+    except OSError:
+        pass
+    return 0.0
+
+
 def machine_info() -> dict[str, Any]:
     """Facts that make numbers comparable across runs."""
     return {
@@ -36,7 +72,8 @@ def machine_info() -> dict[str, Any]:
         "platform": platform.platform(),
         "processor": platform.processor() or platform.machine(),
         "cpu_count": os.cpu_count(),
-        "torch_threads": torch.get_num_threads(),
+        "torch_default_threads": DEFAULT_THREADS,
+        "pinned_threads": PINNED_THREADS,
         "numpy": numpy.__version__,
         "torch": torch.__version__,
     }

@@ -187,7 +187,7 @@ def generated_suites(seeds: int, checkpoint: Path | None = None) -> dict:
     for suite in ("emotion", "transition", "quality", "path"):
         results, _ = run_suites(subject, suite, classifier, requests=requests)
         out[suite] = results[suite]
-    raw = Subject("raw", generator=replace(subject.generator, clean_feet=False))
+    raw = Subject("raw", generator=replace(subject.generator, foot_lock=False))
     out["quality_raw"] = run_suites(raw, "quality", classifier, requests=requests)[0]["quality"]
     e = out["emotion"]
     print(f"\nperceived emotion: window accuracy {e['window_accuracy']:.3f} on generated walks, "
@@ -195,7 +195,7 @@ def generated_suites(seeds: int, checkpoint: Path | None = None) -> dict:
           f"(share {e['share_of_real_accuracy']:.2f}); confusion {e['confusion']}")
     q = out["quality"]
     print(f"foot skating {q['mean_skate_speed']:.3f} m/s vs real {q['real_skate_speed']:.3f} "
-          f"(ratio {q['skate_vs_real']:.2f}); without the foot-contact cleanup "
+          f"(ratio {q['skate_vs_real']:.2f}); without the stream's foot lock "
           f"{out['quality_raw']['mean_skate_speed']:.3f} (ratio "
           f"{out['quality_raw']['skate_vs_real']:.2f})")
     for item in out["transition"]["items"]:

@@ -23,7 +23,7 @@ from bench import (
     bench_lgb,
     bench_mar,
 )
-from bench.common import machine_info
+from bench.common import machine_info, pinned_threads
 from emotive.data import dataset_dir
 from emotive.io.bvh import read_bvh
 
@@ -56,6 +56,9 @@ def main() -> None:
         ("gait", lambda: bench_gait.run(
             agents=(1, 10, 100) if args.quick else (1, 10, 100, 1000),
             baseline_agents=(1, 10) if args.quick else (1, 10, 100))),
+        ("crowds", lambda: bench_gait.crowd_rows(
+            bench_gait.default_model(), agents=300 if args.quick else 1000)),
+        ("feet", lambda: bench_gait.skate_rows(bench_gait.default_model(), d1)),
         ("mar", lambda: bench_mar.run(frames=60 if args.quick else 200,
                                       baseline_frames=10 if args.quick else 20)),
         ("fcrbm", lambda: bench_fcrbm.run(repeats=1 if args.quick else 3)),
@@ -63,7 +66,8 @@ def main() -> None:
                                       repeats=1 if args.quick else 3)),
     ):
         print(f"running {name} ...", flush=True)
-        results += fn()
+        with pinned_threads():
+            results += fn()
 
     print(f"\n{'benchmark':58} {'unit':9} {'emotive':>12} {'baseline':>12} {'ratio':>7}  baseline")
     for r in results:

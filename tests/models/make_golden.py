@@ -50,7 +50,7 @@ MAR_TAKES = 2
 # --- One helper per model: fix a moved import here. -------------------------------------
 
 
-def gait_walk(emotion: str, path: str = "circle", clean_feet: bool = True,
+def gait_walk(emotion: str, path: str = "circle", foot_lock: bool = True,
               seconds: float = SECONDS, seed: int = SEED):
     """A walk of the committed gait network (:func:`generate_walks`)."""
     from emotive.models.gait.model import load_gait_model
@@ -59,7 +59,7 @@ def gait_walk(emotion: str, path: str = "circle", clean_feet: bool = True,
 
     model = load_gait_model()
     return generate_walks(model, [load_path(path)], [emotion], seconds, seed=seed,
-                          clean_feet=clean_feet)[0].motion
+                          foot_lock=foot_lock)[0].motion
 
 
 def table1_predictors() -> dict:
@@ -173,14 +173,14 @@ def motion_summary(motion) -> dict:
 
 
 @functools.cache
-def _walk(emotion: str, clean_feet: bool):
-    return gait_walk(emotion, clean_feet=clean_feet)
+def _walk(emotion: str, foot_lock: bool):
+    return gait_walk(emotion, foot_lock=foot_lock)
 
 
 def _table1_primer():
     """A Table-1 primer made by the gait network itself (no data): the last 1.8 s of a raw
     neutral 3-second walk on a line, at the protocol's 10 fps."""
-    walk = resample(gait_walk("neutral", path="line", clean_feet=False, seconds=3.0), 10.0)
+    walk = resample(gait_walk("neutral", path="line", foot_lock=False, seconds=3.0), 10.0)
     return walk.replace(rotations=walk.rotations[-18:], positions=walk.positions[-18:])
 
 

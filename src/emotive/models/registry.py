@@ -151,8 +151,8 @@ _GAIT_LOADERS = {"generator": "emotive.models.gait.adapter:load_generator",
                  "predictor": "emotive.models.gait.adapter:load_predictor"}
 _GAIT_CARD = "assets/gait/MODEL_CARD.md"
 _GAIT_OPTIONS = (
-    ModelOption("raw", "Skip the foot-contact cleanup (planted feet pinned by inverse "
-                "kinematics): the network's output as it is."),
+    ModelOption("raw", "Stream the network's poses without the causal foot lock (planted "
+                "feet held by two-bone IK in every step)."),
 )
 
 _ENTRIES = (

@@ -63,7 +63,7 @@ def test_agents_stand_on_the_path_advance_by_the_predicted_speed_and_face_along_
     # The world hips sit on the path; the body faces +Z (the line's direction).
     world = np.stack([f.world[0] for f in frames])
     np.testing.assert_allclose(world[:, 0, [0, 2]], root, atol=1e-5)
-    np.testing.assert_allclose(gen._heading, 0.0, atol=1e-9)
+    np.testing.assert_allclose(gen._batch.heading, 0.0, atol=1e-9)
     assert all(np.isfinite(f.world).all() and np.isfinite(f.rotations).all() for f in frames)
     np.testing.assert_allclose(np.linalg.norm(frames[-1].rotations, axis=-1), 1.0, atol=1e-5)
 
@@ -77,8 +77,8 @@ def test_heading_turns_with_a_circle_and_kappa_follows_its_curvature(model):
     arc = SPEED * 40
     tangent = path.heading(arc)
     # delta turns the body towards the inside of the turn (left on this circle), by at most pi.
-    assert 0.0 <= gen._heading[0] - tangent <= math.pi + 1e-9
-    np.testing.assert_allclose(gen._kappa[0], SPEED**2 * 0.5, rtol=0.05)
+    assert 0.0 <= gen._batch.heading[0] - tangent <= math.pi + 1e-9
+    np.testing.assert_allclose(gen._batch.kappa[0], SPEED**2 * 0.5, rtol=0.05)
     np.testing.assert_allclose(frame.root[0], path.position(arc), atol=1e-6)
 
 
@@ -90,7 +90,7 @@ def test_the_target_speed_drops_in_turns_by_the_controls_slowing():
     for _ in range(150):
         gen.step()
     # s_lowpass converges to the happy pace, halved on a circle of 1 m (1 - 0.5 * 1/m).
-    np.testing.assert_allclose(gen._slp, [0.045, 0.0225], rtol=0.02)
+    np.testing.assert_allclose(gen._batch.speed_lowpass, [0.045, 0.0225], rtol=0.02)
 
 
 def test_a_batch_of_agents_steps_exactly_like_each_agent_alone(model):
@@ -150,11 +150,11 @@ def test_an_agent_stops_at_the_end_of_an_open_path(model):
     for _ in range(300):
         frame = gen.step()
     np.testing.assert_allclose(frame.root[0], path.position(path.length), atol=1e-9)
-    assert gen._arc[0] <= path.length
+    assert gen._batch.arc[0] <= path.length
     # Within the last STOP_DISTANCE the target speed falls to zero, so the phase stops too.
-    theta = gen._theta.copy()
+    theta = gen._batch.theta.copy()
     gen.step()
-    np.testing.assert_allclose(gen._theta, theta, atol=1e-3)
+    np.testing.assert_allclose(gen._batch.theta, theta, atol=1e-3)
     assert STOP_DISTANCE > 0
 
 
@@ -169,9 +169,9 @@ def test_non_finite_predictions_keep_the_previous_pose():
 
 
 def test_standing_start_and_seed(model):
-    a = generate_walks(model, [line()], ["happy"], 1.0, seed=1, clean_feet=False)[0]
-    b = generate_walks(model, [line()], ["happy"], 1.0, seed=1, clean_feet=False)[0]
-    c = generate_walks(model, [line()], ["happy"], 1.0, seed=2, clean_feet=False)[0]
+    a = generate_walks(model, [line()], ["happy"], 1.0, seed=1, foot_lock=False)[0]
+    b = generate_walks(model, [line()], ["happy"], 1.0, seed=1, foot_lock=False)[0]
+    c = generate_walks(model, [line()], ["happy"], 1.0, seed=2, foot_lock=False)[0]
     np.testing.assert_array_equal(a.motion.rotations, b.motion.rotations)
     assert not np.allclose(a.motion.rotations, c.motion.rotations)
     # Frame 0 is the standing pose at the start of the path; 1 s is 30 steps after it.
@@ -260,3 +260,63 @@ def test_corrupt_and_missing_checkpoints(tmp_path):
         load_gait_model(bad)
     with pytest.raises(ConfigError, match="not found"):
         load_gait_model(tmp_path / "none.pt")
+
+
+def test_a_thousand_own_paths_walk_as_the_same_paths_shared(model):
+    """Distinct path objects (the bank) give exactly what one shared object gives."""
+    own, shared = GaitGenerator(model), GaitGenerator(model)
+    one = circle(2.0)
+    for i in range(12):
+        own.add_agent(circle(2.0), "happy", start=0.3 * i, seed=i)
+        shared.add_agent(one, "happy", start=0.3 * i, seed=i)
+    for _ in range(40):
+        a, b = own.step(), shared.step()
+    np.testing.assert_allclose(a.world, b.world, atol=1e-9)
+
+
+def test_set_target_walks_to_the_point_without_a_jump_and_stops_there(model):
+    gen = GaitGenerator(model)
+    a = gen.add_agent(line(20.0), "happy")
+    for _ in range(30):
+        before = gen.step().root[0]
+    path = gen.set_target(a, (2.0, 4.0))
+    assert np.linalg.norm(path.position(0.0) - before) < 1e-9
+    roots = np.stack([gen.step().root[0] for _ in range(400)])
+    assert np.linalg.norm(roots[0] - before) <= SPEED + 1e-6  # one frame's walk, no jump
+    np.testing.assert_allclose(roots[-1], (2.0, 4.0), atol=1e-6)
+    with pytest.raises(PathError, match="two finite numbers"):
+        gen.set_target(a, (np.nan, 1.0))
+    with pytest.raises(KeyError, match="no live agent"):
+        gen.set_target(99, (0.0, 0.0))
+
+
+def test_pace_scales_the_emotions_target_speed_and_is_bounded(model):
+    gen = GaitGenerator(model)
+    slow = gen.add_agent(line(50.0), "happy", pace=0.5)
+    gen.add_agent(line(50.0), "happy")
+    fast = gen.add_agent(line(50.0), "happy")
+    gen.set_pace(fast, 1.5)
+    for _ in range(150):
+        gen.step()
+    target = model.controls.speed[0]
+    np.testing.assert_allclose(gen._batch.speed_lowpass, [0.5 * target, target, 1.5 * target],
+                               rtol=0.02)
+    with pytest.raises(ValueError, match=r"between 0\.5 and 1\.5"):
+        gen.set_pace(slow, 2.0)
+    with pytest.raises(ValueError, match=r"between 0\.5 and 1\.5"):
+        gen.add_agent(line(), "happy", pace=float("nan"))
+
+
+def test_adding_and_removing_agents_keeps_every_field_in_step(model):
+    gen = GaitGenerator(model)
+    ids = [gen.add_agent(circle(1.0 + 0.1 * i), "sad", seed=i) for i in range(5)]
+    for _ in range(5):
+        gen.step()
+    kept_world = gen.first_frame().world[[0, 2, 4]]
+    gen.remove_agent(ids[1])
+    gen.remove_agent(ids[3])
+    assert gen.agents == (ids[0], ids[2], ids[4])
+    b = gen._batch
+    assert {len(b), b.state.shape[1], len(b.rotations), len(b.offset), len(b.slot)} == {3}
+    np.testing.assert_allclose(gen.first_frame().world, kept_world, atol=1e-12)
+    assert len(gen._paths) == 3

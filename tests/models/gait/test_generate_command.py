@@ -47,8 +47,8 @@ def test_pretrained_walks_follow_the_path_with_paces_ordered_as_in_the_data():
         head = model.controls.skeleton.index("Head")
         assert (world[:, head, 1] > hips[:, 1] + 0.3).all()
         speeds.append(np.linalg.norm(np.diff(hips[30:, [0, 2]], axis=0), axis=1).mean() * 30)
-    # The foot-contact cleanup keeps planted feet still; the raw network lets them slide.
-    raw = generate_walks(model, [circle()], ["happy"], 8.0, clean_feet=False)[0].motion
+    # The stream's foot lock keeps planted feet still; the raw network lets them slide.
+    raw = generate_walks(model, [circle()], ["happy"], 8.0, foot_lock=False)[0].motion
     roles = resolve_roles(raw.skeleton)
     skate = [float(feet.foot_skating(m.positions_with_end_sites(), roles, m.fps).mean_speed)
              for m in (raw, walks[2].motion)]

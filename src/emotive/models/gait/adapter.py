@@ -63,12 +63,12 @@ class GaitWalkGenerator:
     Attributes:
         model: the loaded model.
         name: its name in reports.
-        clean_feet: apply the foot-contact cleanup (``emotive generate`` does; ``--raw`` not).
+        foot_lock: hold planted feet in the stream (``emotive generate`` does; ``--raw`` not).
     """
 
     model: GaitModel
     name: str = "gait"
-    clean_feet: bool = True
+    foot_lock: bool = True
     capabilities: Capabilities = CAPABILITIES
 
     @property
@@ -92,7 +92,7 @@ class GaitWalkGenerator:
         path = request.path if request.path is not None else load_path(DEFAULT_PATH)
         walk = generate_walks(self.model, [path], [request.schedule], request.seconds,
                               seed=request.seed, primer=request.primer, progress=progress,
-                              clean_feet=self.clean_feet)[0]
+                              foot_lock=self.foot_lock)[0]
         motion, emotion = at_output_rate(walk.motion, walk.emotion)
         motion = motion.replace(metadata={**motion.metadata, "name": request.name})
         return Generated(motion, emotion, walk.labels, walk.path,
@@ -127,10 +127,10 @@ def load_generator(name: str = "gait", weights: str | Path | None = None,
     Args:
         name: the registry entry.
         weights: a checkpoint instead of the entry's.
-        raw: skip the foot-contact cleanup (the network's output as it is).
+        raw: stream the network's poses without the causal foot lock.
     """
     return GaitWalkGenerator(load_model(name, weights), name=_report_name(name, weights),
-                             clean_feet=not raw)
+                             foot_lock=not raw)
 
 
 def load_predictor(name: str = "gait", weights: str | Path | None = None) -> Any:

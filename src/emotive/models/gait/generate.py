@@ -51,7 +51,8 @@ which sets which foot leads and the timing of steps.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any, NamedTuple
 
@@ -64,12 +65,15 @@ from emotive.core.roles import resolve_roles
 from emotive.data.emotion import Emotion, EmotionSchedule, coerce_emotion
 from emotive.errors import PathError, RigError
 from emotive.features.movement import LOWPASS_HZ
+from emotive.ik.foot_lock import initial_lock_state, leg_rig, lock_feet
 from emotive.models.gait.affect import gait_affective
+from emotive.models.gait.agents import AgentBatch, empty_batch, joined, kept
 from emotive.models.gait.controls import MIN_TURN_FACTOR
 from emotive.models.gait.data import canonical_frames, clip_features
 from emotive.models.gait.model import GaitModel
 from emotive.models.gait.network import GaitInputs, same_hemisphere
-from emotive.paths import GroundPath
+from emotive.paths import GroundPath, waypoints
+from emotive.paths.bank import PathBank
 from emotive.transforms.kinematics import PoseFK
 from emotive.transforms.rotations import quaternion_multiply, yaw_quaternion
 
@@ -86,6 +90,12 @@ PATH_MERGE_SLOPE = 0.5
 #: per second.
 HEIGHT_RANGE = (-0.6, 0.4)
 MAX_SPEED = 8.0
+#: A "go to" target nearer than this (metres) stops the agent where it stands.
+MIN_TARGET_DISTANCE = 0.05
+#: A "go to" path leaves along the agent's heading for up to this many metres.
+TARGET_LEAD = 0.75
+#: Allowed per-agent pace factors (times the emotion's walking speed).
+PACE_RANGE = (0.5, 1.5)
 
 EmotionLike = Emotion | EmotionSchedule | str | Mapping[str, float] | np.ndarray
 
@@ -120,6 +130,37 @@ class _Agent:
     constant: bool
 
 
+@contextmanager
+def torch_threads(count: int) -> Iterator[None]:
+    """Run the block with ``count`` torch intra-op threads, then restore the caller's count.
+
+    A generator step is many small operations on small tensors: a second thread only adds
+    synchronization (on a loaded 2-core machine 100 agents stepped 4x faster on one thread),
+    so :class:`GaitGenerator` steps on one thread unless told otherwise.
+    """
+    before = torch.get_num_threads()
+    if before != count:
+        torch.set_num_threads(count)
+    try:
+        yield
+    finally:
+        if before != count:
+            torch.set_num_threads(before)
+
+
+def check_pace(pace: float) -> float:
+    """``pace`` as a float if it lies in :data:`PACE_RANGE`.
+
+    Raises:
+        ValueError: outside the range or not finite.
+    """
+    lo, hi = PACE_RANGE
+    if not (math.isfinite(pace) and lo <= pace <= hi):
+        raise ValueError(f"pace must be between {lo:g} and {hi:g} times the emotion's walking "
+                         f"speed, got {pace!r}")
+    return float(pace)
+
+
 def to_model_schedule(emotion: EmotionLike, labels: Sequence[str]) -> EmotionSchedule:
     """An emotion or schedule over the model's ``labels``.
 
@@ -142,6 +183,10 @@ class GaitGenerator:
         model: the trained model (:func:`~emotive.models.gait.model.load_gait_model`).
         seed: seed of the agents' starting phases (agent ``k`` draws from ``seed`` and ``k``).
         dtype: float type of the network.
+        threads: torch intra-op threads while stepping (:func:`torch_threads`); the
+            caller's setting is restored after each call.
+        foot_lock: hold planted feet still in every streamed frame
+            (:mod:`emotive.ik.foot_lock`); ``False`` streams the network's raw poses.
 
     Example::
 
@@ -152,8 +197,11 @@ class GaitGenerator:
         gen.set_emotion(a, "sad")
     """
 
-    def __init__(self, model: GaitModel, seed: int = 0, dtype: torch.dtype = torch.float32
-                 ) -> None:
+    def __init__(self, model: GaitModel, seed: int = 0, dtype: torch.dtype = torch.float32,
+                 threads: int = 1, foot_lock: bool = True) -> None:
+        if threads < 1:
+            raise ValueError(f"threads must be at least 1, got {threads}")
+        self.threads = int(threads)
         self.model = model
         self.seed = int(seed)
         self.dtype = dtype
@@ -168,6 +216,8 @@ class GaitGenerator:
         self._fk = PoseFK(sk.parents, c.standing_positions, sk.end_site_parents,
                           sk.end_site_offsets, dtype)
         self._roles = resolve_roles(c.skeleton)
+        standing = self._fk(torch.as_tensor(c.standing_rotations, dtype=dtype)[None])[0]
+        self._legs = leg_rig(sk, self._roles, standing.double().numpy()) if foot_lock else None
         self._local = torch.as_tensor(c.standing_positions, dtype=dtype)
         # Joints above the mover stay at the identity (as in the data): the network's
         # prediction for them is discarded, so the mover alone places the body.
@@ -182,23 +232,9 @@ class GaitGenerator:
         self._next_id = 0
         self._agents: dict[int, _Agent] = {}
         self._order: list[int] = []
-        self._groups: list[tuple[GroundPath, np.ndarray]] | None = None
-        j = c.skeleton.num_joints
-        self._state = net.initial_state(0, dtype=dtype)
-        self._rot = torch.zeros(0, j, 4, dtype=dtype)
-        self._root = torch.zeros(0, 3, dtype=dtype)
-        self._affective = torch.zeros(0, 18, dtype=dtype)
-        self._emotion = np.zeros((0, len(self.labels)))
-        # Per-agent float64 controls: phase, s_lowpass, arc position, smoothed delta,
-        # clock, curvature input, heading, path offset (x, z), stopping flag.
-        self._theta = np.zeros(0)
-        self._slp = np.zeros(0)
-        self._arc = np.zeros(0)
-        self._delta = np.zeros(0)
-        self._time = np.zeros(0)
-        self._kappa = np.zeros(0)
-        self._heading = np.zeros(0)
-        self._offset = np.zeros((0, 2))
+        self._paths = PathBank()
+        self._batch = empty_batch(net.initial_state(0, dtype=dtype), c.skeleton.num_joints,
+                                  len(self.labels), dtype)
 
     # ----------------------------------------------------------------------------- agents
 
@@ -212,7 +248,7 @@ class GaitGenerator:
 
     def add_agent(
         self, path: GroundPath, emotion: EmotionLike = "neutral", primer: Motion | None = None,
-        start: float = 0.0, seed: int | None = None,
+        start: float = 0.0, seed: int | None = None, pace: float = 1.0,
     ) -> int:
         """Add an agent standing on ``path`` at arc length ``start``; returns its id.
 
@@ -222,42 +258,63 @@ class GaitGenerator:
             primer: a clip on the model's rig to start from; ``None`` for the standing start.
             start: arc length (metres) where it starts.
             seed: seed of its starting phase (default: from the generator's seed and its id).
+            pace: factor on the emotion's walking speed, 0.5-1.5 (its step frequency changes
+                by the square root, the rest by longer or shorter strides).
 
         Raises:
             EmotionError: a bad emotion. PathError: not a path. RigError: a primer on another
-            rig or too short.
+            rig or too short. ValueError: a pace outside :data:`PACE_RANGE`.
         """
-        if not isinstance(path, GroundPath):
-            raise PathError(f"an agent needs a GroundPath to follow, got {type(path).__name__}")
-        if not math.isfinite(start):
-            raise PathError(f"start must be a finite arc length in metres, got {start}")
-        schedule = to_model_schedule(emotion, self.labels)
-        agent = self._next_id
-        rng = np.random.default_rng([self.seed, agent] if seed is None else [int(seed)])
-        m = schedule.at(0.0)
-        if primer is None:
-            prime = self._standing_start(m, float(rng.uniform(0.0, 2.0 * math.pi)))
-        else:
-            prime = self._primer_start(primer, m)
-        state, rot, root, affective, theta, slp = prime
-        self._next_id += 1
-        self._agents[agent] = _Agent(path, schedule, 0.0, len(schedule.times) == 1)
-        self._order.append(agent)
-        self._groups = None
-        self._state = torch.cat((self._state, state), 1)
-        self._rot = torch.cat((self._rot, rot[None]))
-        self._root = torch.cat((self._root, root[None]))
-        self._affective = torch.cat((self._affective, affective[None]))
-        self._emotion = np.vstack((self._emotion, m[None]))
-        self._theta = np.append(self._theta, theta)
-        self._slp = np.append(self._slp, slp)
-        self._arc = np.append(self._arc, float(start))
-        self._delta = np.append(self._delta, 0.0)
-        self._time = np.append(self._time, 0.0)
-        self._kappa = np.append(self._kappa, 0.0)
-        self._heading = np.append(self._heading, float(path.heading(float(start))))
-        self._offset = np.vstack((self._offset, np.zeros((1, 2))))
-        return agent
+        return self.add_agents([path], [emotion], primer=primer, starts=[start],
+                               seeds=None if seed is None else [seed], paces=[pace])[0]
+
+    def add_agents(
+        self, paths: Sequence[GroundPath], emotions: Sequence[EmotionLike],
+        primer: Motion | None = None, starts: Sequence[float] | None = None,
+        seeds: Sequence[int] | None = None, paces: Sequence[float] | None = None,
+    ) -> list[int]:
+        """Add many agents at once (one warm-up of the network for all); returns their ids.
+
+        Arguments are as for :meth:`add_agent`, one entry per agent (``None``: the defaults).
+        Nothing is added if any entry is bad.
+        """
+        n = len(paths)
+        starts = [0.0] * n if starts is None else list(starts)
+        paces = [check_pace(p) for p in ([1.0] * n if paces is None else paces)]
+        if not (len(emotions) == len(starts) == len(paces) == n
+                and (seeds is None or len(seeds) == n)):
+            raise ValueError("give one emotion, start, pace and seed per path")
+        for path, start in zip(paths, starts, strict=True):
+            if not isinstance(path, GroundPath):
+                raise PathError(f"an agent needs a GroundPath to follow, got "
+                                f"{type(path).__name__}")
+            if not math.isfinite(start):
+                raise PathError(f"start must be a finite arc length in metres, got {start}")
+        schedules = [to_model_schedule(e, self.labels) for e in emotions]
+        ids = list(range(self._next_id, self._next_id + n))
+        m = np.stack([sch.at(0.0) for sch in schedules]) if n else np.zeros((0, len(self.labels)))
+        with torch_threads(self.threads):
+            if primer is None:
+                phases = np.array([
+                    np.random.default_rng([self.seed, a] if seeds is None else [int(seeds[k])])
+                    .uniform(0.0, 2.0 * math.pi) for k, a in enumerate(ids)])
+                state, rot, root, affective, theta, slp = self._standing_start(m, phases)
+            else:
+                state, rot, root, affective, theta, slp = self._primer_start(primer, m)
+        slots = [self._paths.add(path) for path in paths]
+        self._next_id += n
+        for a, path, sch in zip(ids, paths, schedules, strict=True):
+            self._agents[a] = _Agent(path, sch, 0.0, len(sch.times) == 1)
+        self._order.extend(ids)
+        arc = np.asarray(starts, dtype=np.float64)
+        heading = np.array([float(p.heading(float(s))) for p, s in zip(paths, arc, strict=True)])
+        new = AgentBatch(
+            state, rot, root, affective, m, theta, slp, arc, np.zeros(n), np.zeros(n),
+            np.zeros(n), heading, np.zeros((n, 2)), np.array(slots, dtype=np.int64),
+            np.array(paces), *initial_lock_state(n),
+        )
+        self._batch = joined(self._batch, new)
+        return ids
 
     def remove_agent(self, agent: int) -> None:
         """Remove an agent.
@@ -266,17 +323,10 @@ class GaitGenerator:
             KeyError: no live agent has that id.
         """
         k = self._index(agent)
-        keep = [i for i in range(len(self._order)) if i != k]
-        idx = torch.as_tensor(keep, dtype=torch.long)
-        self._state = self._state[:, idx]
-        for name in ("_rot", "_root", "_affective"):
-            setattr(self, name, getattr(self, name)[idx])
-        for name in ("_emotion", "_theta", "_slp", "_arc", "_delta", "_time", "_kappa",
-                     "_heading", "_offset"):
-            setattr(self, name, getattr(self, name)[keep])
+        self._paths.release(int(self._batch.slot[k]))
+        self._batch = kept(self._batch, np.delete(np.arange(len(self._order)), k))
         del self._order[k]
         del self._agents[agent]
-        self._groups = None
 
     def set_emotion(self, agent: int, emotion: EmotionLike) -> None:
         """Give an agent a new emotion or schedule; a schedule's time 0 is now.
@@ -286,9 +336,9 @@ class GaitGenerator:
         """
         k = self._index(agent)
         schedule = to_model_schedule(emotion, self.labels)
-        self._agents[agent] = _Agent(self._agents[agent].path, schedule, float(self._time[k]),
-                                     len(schedule.times) == 1)
-        self._emotion[k] = schedule.at(0.0)
+        self._agents[agent] = _Agent(self._agents[agent].path, schedule,
+                                     float(self._batch.clock[k]), len(schedule.times) == 1)
+        self._batch.emotion[k] = schedule.at(0.0)
 
     def set_path(self, agent: int, path: GroundPath) -> None:
         """Send an agent along another path from its nearest point.
@@ -302,13 +352,64 @@ class GaitGenerator:
         if not isinstance(path, GroundPath):
             raise PathError(f"an agent needs a GroundPath to follow, got {type(path).__name__}")
         k = self._index(agent)
-        info = self._agents[agent]
-        here = info.path.position(self._arc[k]) + self._offset[k]
+        here = self._ground_position(k)
         arc, _ = path.nearest(here[None])
-        self._arc[k] = float(arc[0])
-        self._offset[k] = here - path.position(self._arc[k])
-        info.path = path
-        self._groups = None
+        self._follow(agent, k, path, float(arc[0]), here - path.position(float(arc[0])))
+
+    def set_target(self, agent: int, xz: Sequence[float]) -> GroundPath:
+        """Send an agent to a ground point ``(x, z)`` (metres) and stop it there.
+
+        The new path is a spline from where the agent stands, leaving along its heading, to
+        the target, so the agent neither jumps nor turns on the spot. A target closer than
+        :data:`MIN_TARGET_DISTANCE` leaves the agent where it is, stopping.
+
+        Returns:
+            The path the agent now follows.
+
+        Raises:
+            KeyError: unknown agent. PathError: a non-finite target or one beyond
+            :data:`emotive.paths.MAX_COORDINATE`.
+        """
+        k = self._index(agent)
+        target = np.asarray(xz, dtype=np.float64).reshape(-1)
+        if target.shape != (2,) or not np.isfinite(target).all():
+            raise PathError(f"set_target: the target must be two finite numbers (x, z) in "
+                            f"metres, got {xz!r}")
+        here = self._ground_position(k)
+        yaw = float(self._batch.heading[k])
+        facing = np.array([math.sin(yaw), math.cos(yaw)])
+        gap = float(np.linalg.norm(target - here))
+        if gap < MIN_TARGET_DISTANCE:
+            path = GroundPath.from_polyline(np.stack((here, here + 0.01 * facing)), name="target")
+        else:
+            lead = here + min(TARGET_LEAD, 0.4 * gap) * facing
+            path = waypoints(np.stack((here, lead, target)), name="target")
+        self._follow(agent, k, path, 0.0, np.zeros(2))
+        return path
+
+    def set_pace(self, agent: int, pace: float) -> None:
+        """Walk an agent faster or slower than its emotion does, by ``pace`` (0.5-1.5).
+
+        Raises:
+            KeyError: unknown agent. ValueError: ``pace`` outside :data:`PACE_RANGE`.
+        """
+        k = self._index(agent)
+        self._batch.pace[k] = check_pace(pace)
+
+    def _ground_position(self, k: int) -> np.ndarray:
+        """``(2,)`` where agent ``k`` (batch index) stands, path gap included."""
+        b = self._batch
+        return self._paths.position(b.slot[k:k + 1], b.arc[k:k + 1])[0] + b.offset[k]
+
+    def _follow(self, agent: int, k: int, path: GroundPath, arc: float, offset: np.ndarray
+                ) -> None:
+        """Put agent ``agent`` (batch index ``k``) on ``path`` at ``arc`` with a gap ``offset``."""
+        b = self._batch
+        self._paths.release(int(b.slot[k]))
+        b.slot[k] = self._paths.add(path)
+        b.arc[k] = arc
+        b.offset[k] = offset
+        self._agents[agent].path = path
 
     def _index(self, agent: int) -> int:
         try:
@@ -324,126 +425,120 @@ class GaitGenerator:
         return pos, gait_affective(pos, self._roles)
 
     @torch.no_grad()
-    def _standing_start(self, m: np.ndarray, theta: float) -> tuple:
+    def _standing_start(self, m: np.ndarray, theta: np.ndarray) -> tuple:
+        """Network state after :data:`WARMUP_FRAMES` standing frames, for ``(N, C)`` emotions."""
         c = self.model.controls
+        n, k = len(m), WARMUP_FRAMES - 1
         rot = torch.as_tensor(c.standing_rotations, dtype=self.dtype)
         _, affective = self._affective_of(rot)
         root = torch.tensor([c.standing_height, 0.0, 0.0], dtype=self.dtype)
-        movement = torch.tensor([math.sin(theta), math.cos(theta), 0.0, 0.0, 0.0],
-                                dtype=self.dtype)
-        n = WARMUP_FRAMES - 1
+        movement = torch.zeros(n, k, 5, dtype=self.dtype)
+        movement[..., 0] = torch.as_tensor(np.sin(theta), dtype=self.dtype)[:, None]
+        movement[..., 1] = torch.as_tensor(np.cos(theta), dtype=self.dtype)[:, None]
         inputs = GaitInputs(
-            rot.expand(1, n, -1, -1), affective.expand(1, n, -1),
-            torch.as_tensor(m, dtype=self.dtype)[None], movement.expand(1, n, -1),
-            root.expand(1, n, -1),
+            rot.expand(n, k, -1, -1), affective.expand(n, k, -1),
+            torch.as_tensor(m, dtype=self.dtype), movement, root.expand(n, k, -1),
         )
         _, state = self.network(inputs)
-        return state, rot, root, affective, theta, 0.0
+        return (state, rot.expand(n, -1, -1).clone(), root.expand(n, -1).clone(),
+                affective.expand(n, -1).clone(), np.asarray(theta, dtype=np.float64),
+                np.zeros(n))
 
     @torch.no_grad()
     def _primer_start(self, primer: Motion, m: np.ndarray) -> tuple:
+        """Network state after the primer's frames, for ``(N, C)`` emotions."""
         f = primer_features(primer, self.model.controls)
+        n = len(m)
 
         def t(x: np.ndarray) -> torch.Tensor:
-            return torch.as_tensor(x, dtype=self.dtype)
+            x = torch.as_tensor(x, dtype=self.dtype)
+            return x.expand(n, *x.shape).clone()
 
-        inputs = GaitInputs(t(f["rotations"][None, :-1]), t(f["affective"][None, :-1]),
-                            t(m[None]), t(f["movement"][None, :-1]), t(f["root"][None, :-1]))
+        inputs = GaitInputs(t(f["rotations"][:-1]), t(f["affective"][:-1]),
+                            torch.as_tensor(m, dtype=self.dtype), t(f["movement"][:-1]),
+                            t(f["root"][:-1]))
         _, state = self.network(inputs)
         theta = math.atan2(f["movement"][-1, 0], f["movement"][-1, 1])
-        return (state, t(f["rotations"][-1]), t(f["root"][-1]), t(f["affective"][-1]), theta,
-                float(f["movement"][-1, 3]))
+        return (state, t(f["rotations"][-1]), t(f["root"][-1]), t(f["affective"][-1]),
+                np.full(n, theta), np.full(n, float(f["movement"][-1, 3])))
 
     # ----------------------------------------------------------------------------- stepping
 
     def _update_emotions(self) -> None:
+        b = self._batch
         for k, agent in enumerate(self._order):
             info = self._agents[agent]
             if not info.constant:
-                self._emotion[k] = info.schedule.at(self._time[k] - info.schedule_start)
+                b.emotion[k] = info.schedule.at(b.clock[k] - info.schedule_start)
 
-    def _turn_factor(self) -> np.ndarray:
-        """``(B,)`` the data's slowing in turns at each agent's point of its path."""
-        factor = np.ones(len(self._order))
+    def _turn_factor(self, curvature: np.ndarray) -> np.ndarray:
+        """``(B,)`` the data's slowing in turns at each agent's curvature ``(B,)`` (1/m)."""
         slowing = self.model.controls.turn_slowing
-        if slowing > 0:
-            for path, members in self._by_path():
-                k = np.abs(path.curvature(self._arc[members]))
-                factor[members] = np.maximum(1.0 - slowing * k, MIN_TURN_FACTOR)
-        return factor
+        if slowing <= 0:
+            return np.ones(len(curvature))
+        return np.maximum(1.0 - slowing * np.abs(curvature), MIN_TURN_FACTOR)
 
-    def _by_path(self) -> list[tuple[GroundPath, np.ndarray]]:
-        """The agents grouped by the path they follow, ``(path, batch indices)``.
-
-        Kept until an agent is added or removed or changes path, so a step queries each path in one
-        call.
-        """
-        if self._groups is None:
-            groups: dict[int, tuple[GroundPath, list[int]]] = {}
-            for k, agent in enumerate(self._order):
-                path = self._agents[agent].path
-                groups.setdefault(id(path), (path, []))[1].append(k)
-            self._groups = [(path, np.asarray(members)) for path, members in groups.values()]
-        return self._groups
-
-    @torch.no_grad()
     def step(self) -> GaitFrame:
         """Advance every agent by one frame (``1 / fps`` seconds) and return the new frame."""
-        n = len(self._order)
+        with torch_threads(self.threads), torch.no_grad():
+            return self._step()
+
+    def _step(self) -> GaitFrame:
+        b, bank = self._batch, self._paths
         dt = 1.0 / self.fps
-        m = torch.as_tensor(self._emotion, dtype=torch.float64)
-        omega = (m @ self._freq).numpy()
-        target = (m @ self._speed).numpy()
+        m = torch.as_tensor(b.emotion, dtype=torch.float64)
+        omega = (m @ self._freq).numpy() * np.sqrt(b.pace)
+        target = (m @ self._speed).numpy() * b.pace
         # Slow to a stop before the end of an open path.
-        remaining = np.full(n, np.inf)
-        for path, members in self._by_path():
-            if not path.closed:
-                remaining[members] = path.length - self._arc[members]
-        target = target * np.clip(remaining / STOP_DISTANCE, 0.0, 1.0) * self._turn_factor()
-        moving = np.where(target > 1e-9, np.clip(self._slp / np.maximum(target, 1e-9), 0, 1), 0)
+        remaining = np.where(bank.closed(b.slot), np.inf, bank.length(b.slot) - b.arc)
+        target = (target * np.clip(remaining / STOP_DISTANCE, 0.0, 1.0)
+                  * self._turn_factor(bank.curvature(b.slot, b.arc)))
+        slp = b.speed_lowpass
+        moving = np.where(target > 1e-9, np.clip(slp / np.maximum(target, 1e-9), 0, 1), 0)
         moving = np.where(remaining > STOP_DISTANCE, 1.0, moving)
         omega = omega * moving
-        movement = np.stack((np.sin(self._theta), np.cos(self._theta), omega, self._slp,
-                             self._kappa), 1)
+        movement = np.stack((np.sin(b.theta), np.cos(b.theta), omega, slp, b.kappa), 1)
         inputs = GaitInputs(
-            self._rot, self._affective if self.network.config.use_affective else None,
-            m.to(self.dtype), torch.as_tensor(movement, dtype=self.dtype), self._root,
+            b.rotations, b.affective if self.network.config.use_affective else None,
+            m.to(self.dtype), torch.as_tensor(movement, dtype=self.dtype), b.root,
         )
-        out, state = self.network.step(inputs, self._state)
+        out, state = self.network.step(inputs, b.state)
         rot = out.rotations
         finite = torch.isfinite(rot).all(-1).all(-1) & torch.isfinite(out.root).all(-1)
-        rot = torch.where(finite[:, None, None], same_hemisphere(rot, self._rot), self._rot)
+        rot = torch.where(finite[:, None, None], same_hemisphere(rot, b.rotations), b.rotations)
         rot[:, self._above] = torch.tensor([1.0, 0.0, 0.0, 0.0], dtype=self.dtype)
-        root = torch.where(finite[:, None], out.root, self._root)
-        state = torch.where(finite[None, :, None], state, self._state)
+        root = torch.where(finite[:, None], out.root, b.root)
+        state = torch.where(finite[None, :, None], state, b.state)
         h = root[:, 0].clamp(*HEIGHT_RANGE)
-        s = root[:, 1].clamp(0.0, MAX_SPEED / self.fps)
+        s_pf = root[:, 1].clamp(0.0, MAX_SPEED / self.fps)
         delta = root[:, 2].clamp(0.0, math.pi)
-        root = torch.stack((h, s, delta), 1)
-        s_np, delta_np = s.double().numpy(), delta.double().numpy()
-        # Controls and placement along the paths.
-        self._theta = np.mod(self._theta + omega, 2.0 * math.pi)
-        self._slp += self._alpha * (target - self._slp)
-        self._delta += self._alpha * (delta_np - self._delta)
-        self._arc = self._arc + np.minimum(s_np, np.maximum(remaining, 0.0))
-        xz = np.zeros((n, 2))
-        for path, members in self._by_path():
-            arc = self._arc[members]
-            curvature = path.curvature(arc)
-            side = np.clip(curvature / FULL_TURN_CURVATURE, -1.0, 1.0)
-            self._heading[members] = path.heading(arc) + side * self._delta[members]
-            self._kappa[members] = s_np[members] ** 2 * np.abs(curvature)
-            xz[members] = path.position(arc)
-        gap = np.linalg.norm(self._offset, axis=1)
+        root = torch.stack((h, s_pf, delta), 1)
+        s_np, delta_np = s_pf.double().numpy(), delta.double().numpy()
+        # Controls and placement along the paths, every agent at once.
+        arc = b.arc + np.minimum(s_np, np.maximum(remaining, 0.0))
+        curvature = bank.curvature(b.slot, arc)
+        side = np.clip(curvature / FULL_TURN_CURVATURE, -1.0, 1.0)
+        delta_lp = b.delta + self._alpha * (delta_np - b.delta)
+        gap = np.linalg.norm(b.offset, axis=1)
         shrink = np.maximum(gap - PATH_MERGE_SLOPE * s_np, 0.0) / np.maximum(gap, 1e-12)
-        self._offset *= shrink[:, None]
-        xz += self._offset
-        self._time += dt
-        self._update_emotions()
-        # Next inputs.
+        offset = b.offset * shrink[:, None]
         world_canon, affective = self._affective_of(rot)
-        self._state, self._rot, self._root, self._affective = state, rot, root, affective
-        return self._frame(rot, world_canon, h, xz)
+        self._batch = b.with_values(
+            state=state, rotations=rot, root=root, affective=affective,
+            theta=np.mod(b.theta + omega, 2.0 * math.pi),
+            speed_lowpass=slp + self._alpha * (target - slp), arc=arc, delta=delta_lp,
+            clock=b.clock + dt, kappa=s_np ** 2 * np.abs(curvature),
+            heading=bank.heading(b.slot, arc) + side * delta_lp, offset=offset,
+        )
+        self._update_emotions()
+        xz = bank.position(b.slot, arc) + offset
+        frame = self._frame(rot, world_canon, h, xz)
+        if self._legs is None:
+            return frame
+        rotations, world, feet = lock_feet(self._legs, self._batch.feet, frame.rotations,
+                                           frame.world, s_np * self.fps, self.fps)
+        self._batch = self._batch.with_feet(feet)
+        return frame._replace(rotations=rotations, world=world)
 
     @torch.no_grad()
     def first_frame(self) -> GaitFrame:
@@ -452,11 +547,10 @@ class GaitGenerator:
         The agents' current frame before any step (the standing pose or the primer's last
         frame placed on the path), so that a clip can start where the agents stand.
         """
-        xz = np.zeros((len(self._order), 2))
-        for path, members in self._by_path():
-            xz[members] = path.position(self._arc[members])
-        world_canon, _ = self._affective_of(self._rot)
-        return self._frame(self._rot, world_canon, self._root[:, 0], xz + self._offset)
+        b = self._batch
+        xz = self._paths.position(b.slot, b.arc) + b.offset
+        world_canon, _ = self._affective_of(b.rotations)
+        return self._frame(b.rotations, world_canon, b.root[:, 0], xz)
 
     def _frame(self, rot: torch.Tensor, world_canon: torch.Tensor, h: torch.Tensor,
                xz: np.ndarray) -> GaitFrame:
@@ -471,16 +565,16 @@ class GaitGenerator:
         mv = self.model.controls.mover
         rotations = rot.clone()
         rotations[:, mv] = quaternion_multiply(
-            yaw_quaternion(torch.as_tensor(self._heading, dtype=self.dtype)), rot[:, mv])
+            yaw_quaternion(torch.as_tensor(self._batch.heading, dtype=self.dtype)), rot[:, mv])
         positions = self._local.expand(len(rot), -1, -1).clone()
         height = self._base + h
         positions[:, mv, 0] = torch.as_tensor(xz[:, 0], dtype=self.dtype)
         positions[:, mv, 1] = height
         positions[:, mv, 2] = torch.as_tensor(xz[:, 1], dtype=self.dtype)
-        world = _place(world_canon.double().numpy(), self._heading, xz,
+        world = _place(world_canon.double().numpy(), self._batch.heading, xz,
                        (height - self._local[mv, 1]).double().numpy())
         return GaitFrame(tuple(self._order), rotations.double().numpy(),
-                         positions.double().numpy(), world, self._emotion.copy(), xz)
+                         positions.double().numpy(), world, self._batch.emotion.copy(), xz)
 
 
 def primer_features(primer: Motion, controls: Any) -> dict[str, np.ndarray]:

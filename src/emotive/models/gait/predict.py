@@ -82,7 +82,8 @@ class GaitPredictor:
         The ``frames`` frames after ``primer`` (see
         :meth:`emotive.eval.table1.Predictor.predict`).
         """
-        gen = GaitGenerator(self.model)
+        # Table 1 measures the network's prediction, as the paper does: no foot lock.
+        gen = GaitGenerator(self.model, foot_lock=False)
         gen.add_agent(straight_ahead(primer, self.model.controls), Emotion(emotion, labels),
                       primer=primer)
         first = gen.first_frame()

@@ -1,9 +1,10 @@
 """Whole walks from the gait network: every (path, emotion) pair stepped in one batch.
 
 :func:`generate_walks` (behind ``emotive generate``) runs a
-:class:`~emotive.models.gait.generate.GaitGenerator` for a number of seconds and also cleans
-up foot contacts after the fact (:func:`clean_foot_contacts`): planted feet are pinned and the
-legs re-solved by inverse kinematics. The streaming generator returns the network's raw frames.
+:class:`~emotive.models.gait.generate.GaitGenerator` for a number of seconds and keeps its
+frames as they stream, planted feet held by the causal foot lock; the offline cleanup
+(:func:`clean_foot_contacts`: contacts of the whole clip pinned to their mean position and
+the legs re-solved by inverse kinematics) is an explicit opt-in.
 
 Legend: ``T`` frames, ``C`` emotion labels.
 """
@@ -59,12 +60,15 @@ def generate_walks(
     seed: int = 0,
     primer: Motion | None = None,
     progress: bool = False,
-    clean_feet: bool = True,
+    foot_lock: bool = True,
+    clean_feet: bool = False,
 ) -> list[GeneratedWalk]:
     """Walks of ``seconds`` for each (path, emotion) pair, all stepped in one batch.
 
-    With ``clean_feet`` (the default), each finished walk gets the foot-contact cleanup of
-    :func:`clean_foot_contacts`; ``False`` keeps the network's raw output.
+    The walks are exactly the generator's stream: with ``foot_lock`` (the default) planted
+    feet are held by the causal lock inside every step (:mod:`emotive.ik.foot_lock`), as a
+    live consumer receives them; ``False`` keeps the network's raw poses. ``clean_feet`` opts
+    in to the offline cleanup of :func:`clean_foot_contacts` on top (it needs the whole clip).
 
     Raises:
         EmotionError, PathError, RigError: as
@@ -75,7 +79,7 @@ def generate_walks(
         raise ValueError(f"seconds must be a positive number, got {seconds!r}")
     if len(paths) != len(emotions):
         raise ValueError(f"{len(paths)} paths for {len(emotions)} emotions: give one each")
-    gen = GaitGenerator(model, seed=seed)
+    gen = GaitGenerator(model, seed=seed, foot_lock=foot_lock)
     for path, emotion in zip(paths, emotions, strict=True):
         gen.add_agent(path, emotion, primer=primer)
     frames = [gen.first_frame()]

@@ -1,0 +1,202 @@
+"""Many agents' paths packed into flat arrays, queried for every agent in one operation.
+
+A :class:`PathBank` holds the dense polylines of many :class:`~emotive.paths.GroundPath`
+objects end to end in one growable table, each path's arc lengths shifted by a base so that
+the whole key column rises monotonically. A query for ``B`` agents, each on its own slot at
+its own arc length, is then one :func:`numpy.searchsorted` over the table plus a linear
+interpolation: no Python loop over paths. The queries reproduce
+:meth:`GroundPath.position <emotive.paths.GroundPath.position>`, ``heading`` and
+``curvature`` exactly (same wrapping, same central differences), so an agent walks the same
+way whether the bank holds one path or a thousand.
+
+Adding a path costs ``O(N)`` for its ``N`` samples (amortized: the table doubles when full);
+releasing one marks its rows dead, and the table is compacted once dead rows outnumber live
+ones. Slots are reference counted, so agents sharing one path share its rows.
+
+Legend: ``B`` queries, ``N`` polyline samples.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from emotive.paths import SAMPLE_SPACING, GroundPath
+
+#: Space left between two paths' keys (metres of arc), so a key never reaches the next path.
+_GAP = 1.0
+#: Default curvature window of :meth:`GroundPath.curvature`, metres.
+CURVATURE_WINDOW = 0.2
+
+
+@dataclass
+class _Slot:
+    path: GroundPath
+    first: int
+    count: int
+    base: float
+    users: int = 1
+
+
+class PathBank:
+    """Paths packed for batched queries, by slot number.
+
+    Example::
+
+        bank = PathBank()
+        a, b = bank.add(circle(2.0)), bank.add(line(5.0))
+        xz = bank.position(np.array([a, b, a]), np.array([0.0, 1.0, 3.0]))   # (3, 2)
+    """
+
+    def __init__(self) -> None:
+        self._key = np.zeros(1024)
+        self._pts = np.zeros((1024, 2))
+        self._used = 0
+        self._dead = 0
+        self._slots: dict[int, _Slot] = {}
+        self._by_path: dict[int, int] = {}
+        self._next = 0
+        self._top = 0.0
+        self._table_dirty = True
+        self._length = np.zeros(0)
+        self._closed = np.zeros(0, dtype=bool)
+        self._base = np.zeros(0)
+        self._first = np.zeros(0, dtype=np.int64)
+        self._last = np.zeros(0, dtype=np.int64)
+
+    def __len__(self) -> int:
+        return len(self._slots)
+
+    def path(self, slot: int) -> GroundPath:
+        """The path held in ``slot``."""
+        return self._slots[slot].path
+
+    def add(self, path: GroundPath) -> int:
+        """Hold ``path`` (again, if it is already held) and return its slot."""
+        known = self._by_path.get(id(path))
+        if known is not None:
+            self._slots[known].users += 1
+            return known
+        n = len(path.arc)
+        self._reserve(self._used + n)
+        rows = slice(self._used, self._used + n)
+        self._key[rows] = path.arc + self._top
+        self._pts[rows] = path.points
+        slot = self._next
+        self._next += 1
+        self._slots[slot] = _Slot(path, self._used, n, self._top)
+        self._by_path[id(path)] = slot
+        self._used += n
+        self._top += path.length + _GAP
+        self._table_dirty = True
+        return slot
+
+    def release(self, slot: int) -> None:
+        """Drop one hold on ``slot``; its rows are freed when nobody holds it.
+
+        Raises:
+            KeyError: no such slot.
+        """
+        info = self._slots[slot]
+        info.users -= 1
+        if info.users > 0:
+            return
+        del self._slots[slot]
+        del self._by_path[id(info.path)]
+        self._dead += info.count
+        self._table_dirty = True
+        if self._dead > self._used - self._dead:
+            self._compact()
+
+    def _reserve(self, rows: int) -> None:
+        if rows <= len(self._key):
+            return
+        size = max(rows, 2 * len(self._key))
+        key, pts = np.zeros(size), np.zeros((size, 2))
+        key[:self._used], pts[:self._used] = self._key[:self._used], self._pts[:self._used]
+        self._key, self._pts = key, pts
+
+    def _compact(self) -> None:
+        """Rewrite the table with the live paths only (``O(total live samples)``)."""
+        slots = sorted(self._slots.items(), key=lambda kv: kv[1].first)
+        self._used, self._dead, self._top = 0, 0, 0.0
+        for _, info in slots:
+            n = info.count
+            rows = slice(self._used, self._used + n)
+            self._key[rows] = info.path.arc + self._top
+            self._pts[rows] = info.path.points
+            info.first, info.base = self._used, self._top
+            self._used += n
+            self._top += info.path.length + _GAP
+        self._table_dirty = True
+
+    def _tables(self) -> None:
+        """Per-slot columns indexed by slot number (rebuilt after adds and releases)."""
+        if not self._table_dirty:
+            return
+        size = self._next
+        self._length = np.ones(size)
+        self._closed = np.zeros(size, dtype=bool)
+        self._base = np.zeros(size)
+        self._first = np.zeros(size, dtype=np.int64)
+        self._last = np.ones(size, dtype=np.int64)
+        for slot, info in self._slots.items():
+            self._length[slot] = info.path.length
+            self._closed[slot] = info.path.closed
+            self._base[slot] = info.base
+            self._first[slot] = info.first
+            self._last[slot] = info.first + info.count - 1
+        self._table_dirty = False
+
+    def length(self, slots: np.ndarray) -> np.ndarray:
+        """``(B,)`` total arc length of each slot's path, metres."""
+        self._tables()
+        return self._length[slots]
+
+    def closed(self, slots: np.ndarray) -> np.ndarray:
+        """``(B,)`` whether each slot's path is a loop."""
+        self._tables()
+        return self._closed[slots]
+
+    def _wrap(self, slots: np.ndarray, s: np.ndarray) -> np.ndarray:
+        length = self._length[slots]
+        return np.where(self._closed[slots], np.mod(s, length), np.clip(s, 0.0, length))
+
+    def position(self, slots: np.ndarray, s: np.ndarray) -> np.ndarray:
+        """``(B, 2)`` ``(x, z)`` of slot ``slots[i]``'s path at arc length ``s[i]``."""
+        self._tables()
+        slots = np.asarray(slots, dtype=np.int64)
+        key = self._wrap(slots, np.asarray(s, dtype=np.float64)) + self._base[slots]
+        i = np.searchsorted(self._key[:self._used], key, side="right") - 1
+        i = np.clip(i, self._first[slots], self._last[slots] - 1)
+        k0, k1 = self._key[i], self._key[i + 1]
+        t = np.clip((key - k0) / np.maximum(k1 - k0, 1e-300), 0.0, 1.0)[:, None]
+        return self._pts[i] * (1.0 - t) + self._pts[i + 1] * t
+
+    def heading(self, slots: np.ndarray, s: np.ndarray) -> np.ndarray:
+        """``(B,)`` yaw of the tangent (0 faces +Z), as :meth:`GroundPath.heading`."""
+        self._tables()
+        slots = np.asarray(slots, dtype=np.int64)
+        s = self._wrap(slots, np.asarray(s, dtype=np.float64))
+        length, closed = self._length[slots], self._closed[slots]
+        h = np.minimum(SAMPLE_SPACING, 0.25 * length)
+        lo = np.where(closed, s - h, np.maximum(s - h, 0.0))
+        hi = np.where(closed, s + h, np.minimum(s + h, length))
+        d = self.position(slots, hi) - self.position(slots, lo)
+        d = d / np.maximum(np.linalg.norm(d, axis=-1, keepdims=True), 1e-12)
+        return np.arctan2(d[:, 0], d[:, 1])
+
+    def curvature(self, slots: np.ndarray, s: np.ndarray,
+                  window: float = CURVATURE_WINDOW) -> np.ndarray:
+        """``(B,)`` signed curvature in 1/m (positive turning left), as ``GroundPath.curvature``."""
+        self._tables()
+        slots = np.asarray(slots, dtype=np.int64)
+        s = np.asarray(s, dtype=np.float64)
+        length, closed = self._length[slots], self._closed[slots]
+        h = 0.5 * np.minimum(window, 0.5 * length)
+        a = self.heading(slots, s - h)
+        b = self.heading(slots, s + h)
+        span = np.where(closed, 2 * h, self._wrap(slots, s + h) - self._wrap(slots, s - h))
+        turn = np.angle(np.exp(1j * (b - a)))
+        return np.where(span > 1e-9, turn / np.maximum(span, 1e-9), 0.0)

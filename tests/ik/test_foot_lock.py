@@ -1,0 +1,94 @@
+"""The causal foot lock: planted feet held without latency, legs kept whole, smooth release."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from emotive.core.roles import resolve_roles
+from emotive.ik.foot_lock import LockSettings, initial_lock_state, leg_rig, lock_feet
+from emotive.models.gait.generate import GaitGenerator
+from emotive.models.gait.model import load_gait_model
+from emotive.paths import figure8
+from emotive.transforms.kinematics import forward_kinematics_np
+
+
+@pytest.fixture(scope="module")
+def model():
+    torch.set_num_threads(1)
+    return load_gait_model()
+
+
+def _stream(model, lock: bool, steps: int, emotion: str = "happy", agents: int = 2):
+    gen = GaitGenerator(model, foot_lock=lock)
+    gen.add_agents([figure8()] * agents, [emotion] * agents, seeds=list(range(agents)))
+    frames, planted = [], []
+    for _ in range(steps):
+        frame = gen.step()
+        frames.append(frame)
+        planted.append(gen._batch.feet_planted.copy())
+    return frames, np.stack(planted, 1), gen
+
+
+def test_planted_heels_stand_still_and_legs_keep_their_lengths(model):
+    frames, planted, gen = _stream(model, True, 150)
+    legs = gen._legs
+    world = np.stack([f.world for f in frames], 1)  # (B, T, P, 3)
+    heel = world[:, :, legs.chain[:, 3]]  # (B, T, 2, 3)
+    held = planted[:, 1:, :, 0] & planted[:, :-1, :, 0]
+    move = np.linalg.norm(np.diff(heel[..., [0, 2]], axis=1), axis=-1)
+    assert held.sum() > 50
+    # Held heels stay put, except where the leg cannot reach (a straight knee at heel strike).
+    assert np.mean(move[held] < 1e-6) > 0.9 and move[held].max() < 0.02
+    # The locked frames are a pose of the rig: FK of the returned rotations gives the points
+    # (from the hips down; the file's placement root above them is not part of the pose).
+    sk = model.controls.skeleton
+    body = np.arange(model.controls.mover, sk.num_joints)
+    for f in frames[::10]:
+        _, fk = forward_kinematics_np(f.rotations, f.positions, sk.parents)
+        np.testing.assert_allclose(fk[:, body], f.world[:, body], atol=1e-5)
+    # Thigh and shin lengths are the rig's in every frame.
+    hip, knee, ankle = legs.chain[0, 1:]
+    for a, b in ((hip, knee), (knee, ankle)):
+        rest = np.linalg.norm(world[0, 0, b] - world[0, 0, a])
+        np.testing.assert_allclose(np.linalg.norm(world[:, :, b] - world[:, :, a], axis=-1),
+                                   rest, atol=1e-5)
+
+
+def test_the_lock_changes_swinging_legs_only_by_a_fading_correction(model):
+    locked, planted, gen = _stream(model, True, 120)
+    raw, _, _ = _stream(model, False, 120)
+    ankles = gen._legs.chain[:, 3]
+    gap = np.stack([np.linalg.norm(a.world[:, ankles] - b.world[:, ankles], axis=-1)
+                    for a, b in zip(locked, raw, strict=True)], 1)  # (B, T, 2)
+    swing = ~planted.any(-1)
+    assert np.median(gap[swing]) < 0.03
+    # The root, the spine and the arms are the network's.
+    np.testing.assert_allclose(locked[-1].positions, raw[-1].positions, atol=1e-9)
+    head = model.controls.skeleton.index("Head")
+    np.testing.assert_allclose(locked[-1].world[:, head], raw[-1].world[:, head], atol=1e-9)
+
+
+def test_a_thousand_steps_stay_finite_and_on_the_ground(model):
+    frames, _, _ = _stream(model, True, 1000, emotion="angry", agents=3)
+    world = np.stack([f.world for f in frames])
+    assert np.isfinite(world).all()
+    assert world[..., 1].min() > -0.1
+
+
+def test_the_settings_lock_nothing_when_every_threshold_is_zero(model):
+    sk = model.controls.skeleton
+    roles = resolve_roles(sk)
+    gen = GaitGenerator(model, foot_lock=False)
+    gen.add_agents([figure8()], ["sad"])
+    frames = [gen.step() for _ in range(5)]
+    rig = leg_rig(sk, roles, frames[0].world[0])
+    state = initial_lock_state(1)
+    never = LockSettings(height_on=0.0, speed_on=0.0, body_on=0.0)
+    for f in frames:
+        rotations, world, state = lock_feet(rig, state, f.rotations, f.world, np.ones(1), 30.0,
+                                            never)
+        np.testing.assert_array_equal(rotations, f.rotations)
+        np.testing.assert_array_equal(world, f.world)
+    assert not state.planted.any()
