@@ -41,7 +41,8 @@ def _generator(model: GaitModel, agents: int, own_paths: bool = False,
     """``agents`` agents on one shared figure-8, or each on its own circle."""
     gen = GaitGenerator(model, threads=threads)
     shared = figure8()
-    paths = [circle(1.5 + 0.001 * k) if own_paths else shared for k in range(agents)]
+    # Own paths: distinct circles of 1.5-2.5 m radius (a room-sized crowd), one object each.
+    paths = [circle(1.5 + 0.001 * (k % 1000)) if own_paths else shared for k in range(agents)]
     gen.add_agents(paths, [EMOTIONS[k % len(EMOTIONS)] for k in range(agents)],
                    starts=[0.37 * k for k in range(agents)])
     for _ in range(3):
