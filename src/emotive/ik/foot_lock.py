@@ -35,7 +35,7 @@ import numpy as np
 
 from emotive.core.roles import JointRoles
 from emotive.core.skeleton import Skeleton
-from emotive.transforms.fast_np import qapply, qmul, qnormalize
+from emotive.transforms.fast_np import cross, qapply, qmul, qnormalize
 
 
 @dataclass(frozen=True)
@@ -164,7 +164,7 @@ def _between(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     u = u / np.maximum(np.linalg.norm(u, axis=-1, keepdims=True), 1e-12)
     v = v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-12)
     w = 1.0 + (u * v).sum(-1, keepdims=True)
-    q = np.concatenate((w, np.cross(u, v)), -1)
+    q = np.concatenate((w, cross(u, v)), -1)
     return qnormalize(np.where(w > 1e-9, q, np.array([1.0, 0.0, 0.0, 0.0])))
 
 

@@ -41,6 +41,8 @@ class AgentBatch:
         offset: ``(B, 2)`` gap to the path still to close after a path change, metres.
         slot: ``(B,)`` the agent's path in the generator's :class:`~emotive.paths.bank.PathBank`.
         pace: ``(B,)`` factor on the emotion's walking speed (1 = as the data walks).
+        curvature: ``(B,)`` signed curvature of each agent's path at its arc, 1/m (kept from
+            the step that moved it there, so a step looks each path up once).
         feet_previous: ``(B, 2, 2, 3)`` unlocked heel and toe positions of the last frame.
         feet_planted: ``(B, 2, 2)`` which heels and toes are planted.
         feet_anchor: ``(B, 2, 2)`` where each planted point is held ``(x, z)``.
@@ -65,6 +67,7 @@ class AgentBatch:
     offset: np.ndarray
     slot: np.ndarray
     pace: np.ndarray
+    curvature: np.ndarray
     feet_previous: np.ndarray
     feet_planted: np.ndarray
     feet_anchor: np.ndarray
@@ -106,7 +109,8 @@ def empty_batch(state: torch.Tensor, joints: int, labels: int, dtype: torch.dtyp
     return AgentBatch(
         state, torch.zeros(0, joints, 4, dtype=dtype), torch.zeros(0, 3, dtype=dtype),
         torch.zeros(0, 18, dtype=dtype), np.zeros((0, labels)), *(np.zeros(0) for _ in range(7)),
-        np.zeros((0, 2)), np.zeros(0, dtype=np.int64), np.zeros(0), *initial_lock_state(0),
+        np.zeros((0, 2)), np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0),
+        *initial_lock_state(0),
     )
 
 

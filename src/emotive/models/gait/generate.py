@@ -311,7 +311,8 @@ class GaitGenerator:
         new = AgentBatch(
             state, rot, root, affective, m, theta, slp, arc, np.zeros(n), np.zeros(n),
             np.zeros(n), heading, np.zeros((n, 2)), np.array(slots, dtype=np.int64),
-            np.array(paces), *initial_lock_state(n),
+            np.array(paces), self._paths.curvature(np.array(slots, dtype=np.int64), arc),
+            *initial_lock_state(n),
         )
         self._batch = joined(self._batch, new)
         return ids
@@ -409,6 +410,7 @@ class GaitGenerator:
         b.slot[k] = self._paths.add(path)
         b.arc[k] = arc
         b.offset[k] = offset
+        b.curvature[k] = self._paths.curvature(b.slot[k:k + 1], b.arc[k:k + 1])[0]
         self._agents[agent].path = path
 
     def _index(self, agent: int) -> int:
@@ -492,7 +494,7 @@ class GaitGenerator:
         # Slow to a stop before the end of an open path.
         remaining = np.where(bank.closed(b.slot), np.inf, bank.length(b.slot) - b.arc)
         target = (target * np.clip(remaining / STOP_DISTANCE, 0.0, 1.0)
-                  * self._turn_factor(bank.curvature(b.slot, b.arc)))
+                  * self._turn_factor(b.curvature))
         slp = b.speed_lowpass
         moving = np.where(target > 1e-9, np.clip(slp / np.maximum(target, 1e-9), 0, 1), 0)
         moving = np.where(remaining > STOP_DISTANCE, 1.0, moving)
@@ -529,6 +531,7 @@ class GaitGenerator:
             speed_lowpass=slp + self._alpha * (target - slp), arc=arc, delta=delta_lp,
             clock=b.clock + dt, kappa=s_np ** 2 * np.abs(curvature),
             heading=bank.heading(b.slot, arc) + side * delta_lp, offset=offset,
+            curvature=curvature,
         )
         self._update_emotions()
         xz = bank.position(b.slot, arc) + offset
