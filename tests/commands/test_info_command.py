@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import emotive
-from emotive.cli import main
+from cli_helpers import run_main
 from emotive.core import Motion, Skeleton
 from emotive.data.clips import parse_clip_name
 from emotive.io.bvh import write_bvh
@@ -46,16 +46,6 @@ def walk_file(tmp_path: Path) -> Path:
     return write_bvh(make_walk(), tmp_path / "dataset-1_walk_happy_001.bvh", unit="cm")
 
 
-def run_cli(monkeypatch, capsys, *args) -> tuple[int, str, str]:
-    """Run the console entry point in-process; return exit code, stdout and stderr."""
-    monkeypatch.setattr(sys, "argv", ["emotive", *map(str, args)])
-    monkeypatch.setenv("COLUMNS", "120")
-    with pytest.raises(SystemExit) as exc:
-        main()
-    out = capsys.readouterr()
-    return exc.value.code, out.out, out.err
-
-
 def leftovers(folder: Path) -> list[str]:
     return sorted(p.name for p in folder.iterdir() if not p.suffix == ".bvh")
 
@@ -79,7 +69,7 @@ class TestLabels:
 
 class TestInfo:
     def test_labelled_clip(self, monkeypatch, capsys, walk_file):
-        code, out, _ = run_cli(monkeypatch, capsys, "info", walk_file)
+        code, out, _ = run_main(monkeypatch, capsys, "info", walk_file)
         assert code == 0
         assert "frames: 60" in out and "fps: 30" in out and "duration: 2.00 s" in out
         assert "content walk" in out and "style happy" in out and "take 001" in out
@@ -90,13 +80,13 @@ class TestInfo:
     def test_unlabelled_clip_with_missing_roles(self, monkeypatch, capsys, tmp_path):
         # Without --roles the rig's shape would name the head; the Bandai names lack it.
         path = write_bvh(make_walk({"Head": "Kopf"}), tmp_path / "walk.bvh")
-        code, out, _ = run_cli(monkeypatch, capsys, "info", path, "--roles", "bandai")
+        code, out, _ = run_main(monkeypatch, capsys, "info", path, "--roles", "bandai")
         assert code == 0
         assert "labels: none" in out
         assert "missing" in out and "roles not resolved" in out and "head" in out
 
     def test_bad_file(self, monkeypatch, capsys, tmp_path):
-        code, out, err = run_cli(monkeypatch, capsys, "info", tmp_path / "absent.bvh")
+        code, out, err = run_main(monkeypatch, capsys, "info", tmp_path / "absent.bvh")
         assert code == 2 and out == ""
         assert err.startswith("error: ") and "absent.bvh" in err and err.count("\n") == 1
 
@@ -108,7 +98,7 @@ class TestFeatures:
         from emotive.io.bvh import read_bvh
 
         out = tmp_path / "features.csv"
-        code, _, err = run_cli(monkeypatch, capsys, "features", walk_file, "--out", out)
+        code, _, err = run_main(monkeypatch, capsys, "features", walk_file, "--out", out)
         assert code == 0, err
         header = out.read_text().splitlines()[0].split(",")
         assert header[0] == "time" and header[1:19] == list(AFFECTIVE_FEATURE_NAMES)
@@ -126,7 +116,7 @@ class TestFeatures:
 
     def test_plot(self, monkeypatch, capsys, walk_file, tmp_path):
         out, png = tmp_path / "f.csv", tmp_path / "f.png"
-        code, _, err = run_cli(
+        code, _, err = run_main(
             monkeypatch, capsys, "features", walk_file, "--out", out, "--plot", png
         )
         assert code == 0, err
@@ -136,7 +126,7 @@ class TestFeatures:
     def test_roles_file(self, monkeypatch, capsys, tmp_path):
         path = write_bvh(make_walk({"Head": "Kopf"}), tmp_path / "walk.bvh")
         out = tmp_path / "f.csv"
-        code, _, err = run_cli(
+        code, _, err = run_main(
             monkeypatch, capsys, "features", path, "--out", out, "--roles", "bandai"
         )
         assert code == 2 and "head" in err and "--roles" in err and not out.exists()
@@ -144,7 +134,7 @@ class TestFeatures:
         from emotive.core.roles import BANDAI
 
         roles.write_text(json.dumps({**BANDAI, "head": "Kopf"}))
-        code, _, err = run_cli(
+        code, _, err = run_main(
             monkeypatch, capsys, "features", path, "--out", out, "--roles", roles
         )
         assert code == 0, err
@@ -154,7 +144,7 @@ class TestFeatures:
         bad = tmp_path / "bad.bvh"
         bad.write_text("HIERARCHY\nROOT Hips\n{\n  OFFSET 0 0\n")
         out, png = tmp_path / "f.csv", tmp_path / "f.png"
-        code, stdout, err = run_cli(
+        code, stdout, err = run_main(
             monkeypatch, capsys, "features", bad, "--out", out, "--plot", png
         )
         assert code == 2 and stdout == ""
@@ -165,7 +155,7 @@ class TestFeatures:
         out = tmp_path / "f.csv"
         out.write_text("old")
         (tmp_path / "empty.bvh").write_text("")
-        code, _, _ = run_cli(monkeypatch, capsys, "features", tmp_path / "empty.bvh", "--out", out)
+        code, _, _ = run_main(monkeypatch, capsys, "features", tmp_path / "empty.bvh", "--out", out)
         assert code == 2 and out.read_text() == "old" and leftovers(tmp_path) == ["f.csv"]
 
     @pytest.mark.parametrize("option", [("--out", "missing/f.csv"), ("--plot", "f.gif")])
@@ -176,7 +166,7 @@ class TestFeatures:
             args[-1] = tmp_path / value
         else:
             args += [flag, tmp_path / value]
-        code, _, err = run_cli(monkeypatch, capsys, *args)
+        code, _, err = run_main(monkeypatch, capsys, *args)
         assert code == 2 and err.startswith("error: ") and err.count("\n") == 1
         assert leftovers(tmp_path) == []
 
@@ -196,9 +186,9 @@ def test_console_entry_point_one_line_error(tmp_path):
 
 
 def test_version_and_help_list_every_command(monkeypatch, capsys):
-    code, out, _ = run_cli(monkeypatch, capsys, "--version")
+    code, out, _ = run_main(monkeypatch, capsys, "--version")
     assert code == 0 and out.strip() == f"emotive {emotive.__version__}"
-    code, out, _ = run_cli(monkeypatch, capsys, "--help")
+    code, out, _ = run_main(monkeypatch, capsys, "--help")
     assert code == 0
     for command in ("info", "features", "data"):
         assert command in out
@@ -208,5 +198,5 @@ def test_info_names_the_emotion_label_of_a_style(monkeypatch, capsys, tmp_path):
     for style, label in (("normal", "neutral"), ("not-confident", "not-confident"),
                          ("unheard-of", "none known")):
         path = write_bvh(make_walk(), tmp_path / f"dataset-1_walk_{style}_001.bvh", unit="cm")
-        code, out, _ = run_cli(monkeypatch, capsys, "info", path)
+        code, out, _ = run_main(monkeypatch, capsys, "info", path)
         assert code == 0 and f"emotion label {label}" in out

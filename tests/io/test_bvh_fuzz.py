@@ -4,7 +4,6 @@ plausible motion, fast and small; a pipe is refused at once; the CLI prints one 
 from __future__ import annotations
 
 import os
-import sys
 import threading
 import time
 import tracemalloc
@@ -14,7 +13,7 @@ import numpy as np
 import pytest
 from bvh_mutants import base_motion, deep_chain, mutants
 
-from emotive.cli import main
+from cli_helpers import run_main
 from emotive.errors import BVHError
 from emotive.io import bvh_limits as limits
 from emotive.io.bvh import read_bvh, write_bvh
@@ -236,15 +235,6 @@ def test_every_bandai_clip_keeps_centimetres(bandai1_dir, bandai2_dir, tmp_path)
             assert limits.detect_unit(height_m / limits.UNITS["in"]) == "in", path.name
 
 
-def _cli(monkeypatch, capsys, *args) -> tuple[int, str, str]:
-    monkeypatch.setattr(sys, "argv", ["emotive", *map(str, args)])
-    monkeypatch.setenv("COLUMNS", "120")
-    with pytest.raises(SystemExit) as exc:
-        main()
-    out = capsys.readouterr()
-    return exc.value.code, out.out, out.err
-
-
 CLI_SAMPLE = [m for n, m in enumerate(mutants()) if n % 73 == 0 or m[0].startswith("frame_time")]
 
 
@@ -256,7 +246,7 @@ def test_cli_mutants_give_one_error_line_or_succeed(monkeypatch, capsys, tmp_pat
         path = tmp_path / f"{name}.bvh"
         path.write_bytes(data)
         extra = ["-o", tmp_path / "features.csv"] if command == "features" else []
-        code, out, err = _cli(monkeypatch, capsys, command, path, *extra)
+        code, out, err = run_main(monkeypatch, capsys, command, path, *extra)
         assert "Traceback" not in err + out, (name, err)
         if code == 0:
             assert_plausible(read_bvh(path))

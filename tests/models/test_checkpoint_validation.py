@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import copy
 import math
-import sys
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -15,7 +14,7 @@ from typing import Any
 import pytest
 import torch
 
-from emotive.cli import main
+from cli_helpers import run_main
 from emotive.errors import ConfigError
 from emotive.eval.classifier import EmotionClassifier, default_classifier_path
 from emotive.models.fcrbm.checkpoint import load_fcrbm_checkpoint
@@ -132,15 +131,6 @@ def test_every_corrupt_variant_is_a_one_line_config_error(committed, tmp_path, n
         assert "Error(s) in loading" not in message and "miniz" not in message
 
 
-def run_cli(monkeypatch, capsys, *args) -> tuple[int, str, str]:
-    monkeypatch.setattr(sys, "argv", ["emotive", *map(str, args)])
-    monkeypatch.setenv("COLUMNS", "200")
-    with pytest.raises(SystemExit) as exc:
-        main()
-    out = capsys.readouterr()
-    return exc.value.code, out.out, out.err
-
-
 @pytest.mark.parametrize(("name", "args"), [
     ("gait", ["generate", "--seconds", "0.5", "--checkpoint"]),
     ("fcrbm", ["generate", "--model", "fcrbm", "--seconds", "0.5", "--checkpoint"]),
@@ -153,7 +143,7 @@ def test_the_command_line_prints_one_error_line_and_exits_2(committed, tmp_path,
     monkeypatch.chdir(tmp_path)
     for path, words in write_variants(name, committed[name], folder):
         extra = ["-o", tmp_path / "out.bvh"] if args[0] == "generate" else []
-        code, out, err = run_cli(monkeypatch, capsys, *args, path, *extra)
+        code, out, err = run_main(monkeypatch, capsys, *args, path, *extra)
         assert code == 2 and out == "", (path.name, code, err)
         assert err.startswith("error: ") and err.count("\n") == 1, err
         assert words in err, (path.name, err)
