@@ -13,22 +13,24 @@ import torch
 from emotive.cli import main
 from emotive.core.roles import ROLES, resolve_roles
 from emotive.eval.classifier import (
-    ARCHITECTURES,
     FILE_FORMAT,
-    JOINT_COLUMNS,
-    NUM_FEATURES,
-    ROLE_EDGES,
     ClassifierConfig,
     ClassifierError,
     EmotionClassifier,
+    default_classifier_path,
+    frame_features,
+    load_default_classifier,
+)
+from emotive.eval.classifier_nets import (
+    ARCHITECTURES,
+    JOINT_COLUMNS,
+    NUM_FEATURES,
+    ROLE_EDGES,
     EmotionClassifierNet,
     EmotionGraphNet,
     _GraphBlock,
     build_net,
-    default_classifier_path,
-    frame_features,
     joint_nodes,
-    load_default_classifier,
     role_adjacency,
 )
 from emotive.io.bvh import read_bvh, write_bvh

@@ -7,7 +7,7 @@ import pytest
 from stick_figures import FPS, figure
 
 from emotive.core.roles import ROLES
-from emotive.eval.classifier import ROLE_EDGES, ClassifierConfig, track_features
+from emotive.eval.classifier import ClassifierConfig, track_features
 from emotive.eval.classifier_augment import (
     MIRROR_ORDER,
     ROLE_PARENT,
@@ -21,6 +21,7 @@ from emotive.eval.classifier_augment import (
     scale_to_height,
     standing_height,
 )
+from emotive.eval.classifier_nets import ROLE_EDGES
 
 IDX = {r: k for k, r in enumerate(ROLES)}
 

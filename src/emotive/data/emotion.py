@@ -429,8 +429,7 @@ class EmotionSchedule:
         hi = np.clip(np.searchsorted(self.times, flat, side="right"), 1, k - 1)
         lo = hi - 1
         span = self.times[hi] - self.times[lo]
-        ramp = span > 1e-9
-        safe = np.where(ramp, span, 1.0)
+        ramp, safe = span > 1e-9, np.where(span > 1e-9, span, 1.0)
         alpha = np.clip(np.where(ramp, (flat - self.times[lo]) / safe, 1.0), 0.0, 1.0)
         alpha[flat < self.times[0]] = 0.0
         return (1 - alpha)[:, None] * values[lo] + alpha[:, None] * values[hi]

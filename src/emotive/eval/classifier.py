@@ -18,8 +18,9 @@ the 21 joint roles (:data:`emotive.core.roles.ROLES`), so any rig with a role ma
 Everything is resampled to :attr:`ClassifierConfig.fps` and standardized with the training
 set's mean and standard deviation, saved with the weights.
 
-Two networks, picked by :attr:`ClassifierConfig.architecture` (see :data:`ARCHITECTURES`);
-both read ``(B, T, F)`` standardized features and give ``(B, C)`` logits:
+Two networks (:mod:`emotive.eval.classifier_nets`), picked by
+:attr:`ClassifierConfig.architecture`; both read ``(B, T, F)`` standardized features and
+give ``(B, C)`` logits:
 
 * ``"tcn"`` (:class:`EmotionClassifierNet`): a 1D convolution of width 5 to ``channels``, then
   ``blocks`` residual dilated convolutions (dilation 2, 4, ...), ELU, mean over time, a linear
@@ -27,7 +28,7 @@ both read ``(B, T, F)`` standardized features and give ``(B, C)`` logits:
 * ``"stgcn"`` (:class:`EmotionGraphNet`): a spatial-temporal graph convolution network in the
   spirit of STEP (Bhattacharya et al. 2020) and ST-GCN (Yan et al. 2018). Each of the 21
   roles is a graph node carrying its body-frame position and velocity (6 channels); the graph
-  is the role skeleton (:data:`ROLE_EDGES`, :func:`role_adjacency`). ``graph_blocks`` blocks
+  is the role skeleton (:mod:`emotive.eval.classifier_nets`). ``graph_blocks`` blocks
   each mix channels per joint, average over graph neighbours, convolve along time and add a
   residual; the result is averaged over time and joints. The affective and movement features
   pass through a small temporal branch, are averaged over time and joined to the graph
@@ -56,7 +57,7 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -69,28 +70,12 @@ from emotive.core.roles import ROLES, JointRoles, resolve_roles
 from emotive.data.emotion import DEFAULT_LABELS, check_labels
 from emotive.errors import ConfigError, EmotiveError
 from emotive.eval.classifier_augment import AugmentConfig
+from emotive.eval.classifier_nets import ARCHITECTURES, NUM_FEATURES, build_net
 from emotive.features.affective import affective_features_np, role_indices
 from emotive.features.contacts import foot_contacts, leg_length
 from emotive.features.movement import facing_directions, movement_features
 from emotive.io.atomic import atomic_output
 from emotive.models.training import check_values, load_weights, read_checkpoint, require_keys
-
-#: Number of per-frame feature columns.
-NUM_FEATURES = 2 * 3 * len(ROLES) + 18 + 8
-
-#: Feature columns holding the joint roles' positions then velocities (``2 * J * 3``).
-JOINT_COLUMNS = 2 * 3 * len(ROLES)
-
-#: The role skeleton as undirected edges: spine chain, arms from the chest, legs from the root.
-ROLE_EDGES: tuple[tuple[str, str], ...] = (
-    ("root", "spine"), ("spine", "chest"), ("chest", "neck"), ("neck", "head"),
-    ("chest", "l_shoulder"), ("l_shoulder", "l_elbow"), ("l_elbow", "l_wrist"),
-    ("l_wrist", "l_handtip"),
-    ("chest", "r_shoulder"), ("r_shoulder", "r_elbow"), ("r_elbow", "r_wrist"),
-    ("r_wrist", "r_handtip"),
-    ("root", "l_hip"), ("l_hip", "l_knee"), ("l_knee", "l_ankle"), ("l_ankle", "l_toe"),
-    ("root", "r_hip"), ("r_hip", "r_knee"), ("r_knee", "r_ankle"), ("r_ankle", "r_toe"),
-)
 
 
 class ClassifierError(EmotiveError):
@@ -266,161 +251,6 @@ def motion_features(motion: Motion, config: ClassifierConfig,
 def track_features(points: np.ndarray, fps: float, config: ClassifierConfig) -> np.ndarray:
     """:func:`frame_features` of a ``(T, J, 3)`` role track at the classifier's rate."""
     return frame_features(points, ROLE_POINTS, fps, config.fps)
-
-
-class _Block(nn.Module):
-    def __init__(self, channels: int, dilation: int) -> None:
-        super().__init__()
-        self.conv = nn.Conv1d(channels, channels, 5, padding=2 * dilation, dilation=dilation)
-        self.act = nn.ELU()
-
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        return x + self.act(self.conv(x))
-
-
-class _Heads(nn.Module):
-    """The heads shared by both networks on the pooled ``(B, E)`` embedding.
-
-    Subclasses define ``embed(x)``: ``(B, T, F)`` standardized features to ``(B, E)``.
-    """
-
-    def __init__(self, config: ClassifierConfig, width: int) -> None:
-        super().__init__()
-        self.drop = nn.Dropout(config.dropout)
-        self.out = nn.Linear(width, len(config.labels))
-        self.aux = nn.Linear(width, 2 + len(config.style_labels))
-
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        """``(B, C)`` label logits of ``(B, T, F)`` standardized features."""
-        return self.out(self.drop(self.embed(x)))
-
-    def heads(self, x: torch.Tensor) -> tuple[torch.Tensor, ...]:
-        """Everything the network says about ``(B, T, F)`` standardized features.
-
-        Returns:
-            ``(B, E)`` embedding, ``(B, C)`` label logits, ``(B, 2)`` valence/arousal in
-            -1..1 and ``(B, S)`` shared-style logits.
-        """
-        e = self.embed(x)
-        h = self.drop(e)
-        aux = self.aux(h)
-        return e, self.out(h), torch.tanh(aux[:, :2]), aux[:, 2:]
-
-
-class EmotionClassifierNet(_Heads):
-    """Temporal CNN (``"tcn"``): ``(B, T, F)`` standardized features to ``(B, C)`` logits."""
-
-    def __init__(self, config: ClassifierConfig) -> None:
-        super().__init__(config, config.channels)
-        c = config.channels
-        self.inp = nn.Sequential(nn.Conv1d(NUM_FEATURES, c, 5, padding=2), nn.ELU())
-        self.blocks = nn.Sequential(*(_Block(c, 2 ** (k + 1)) for k in range(config.blocks)))
-
-    def embed(self, x: torch.Tensor) -> torch.Tensor:
-        """``(B, E = channels)`` mean over time of the last block."""
-        return self.blocks(self.inp(x.transpose(1, 2))).mean(-1)
-
-
-def role_adjacency() -> np.ndarray:
-    """Normalized adjacency of the role skeleton with self loops.
-
-    ``D^-1/2 (A + I) D^-1/2`` with ``D`` the degrees of ``A + I`` (Kipf and Welling's
-    normalization): symmetric, so a joint hears its neighbours as they hear it, and its
-    largest eigenvalue is 1, so stacked blocks neither blow up nor fade the signal.
-
-    Returns:
-        ``(J, J)`` float32, rows and columns in :data:`ROLES` order.
-    """
-    a = np.eye(len(ROLES))
-    for u, v in ROLE_EDGES:
-        a[ROLES.index(u), ROLES.index(v)] = a[ROLES.index(v), ROLES.index(u)] = 1.0
-    scale = 1.0 / np.sqrt(a.sum(1))
-    return (scale[:, None] * a * scale[None, :]).astype(np.float32)
-
-
-#: Frames seen by each temporal convolution of the graph blocks (ST-GCN's 9).
-_TEMPORAL_KERNEL = 9
-
-
-class _GraphBlock(nn.Module):
-    """ST-GCN block, ``(B, T, J, c_in)`` to ``(B, ceil(T / stride), J, c_out)`` (c: channels).
-
-    Channels stay last: the per-joint channel mixing is then a linear layer, and the temporal
-    convolution sees a channels-last ``(B, c, T, J)`` view, the layout that the CPU kernels
-    run several times faster than the default one.
-    """
-
-    def __init__(self, c_in: int, c_out: int, stride: int) -> None:
-        super().__init__()
-        self.stride = stride
-        self.spatial = nn.Linear(c_in, c_out)
-        self.temporal = nn.Conv2d(c_out, c_out, (_TEMPORAL_KERNEL, 1), stride=(stride, 1),
-                                  padding=(_TEMPORAL_KERNEL // 2, 0))
-        self.residual = nn.Identity() if c_in == c_out else nn.Linear(c_in, c_out)
-        self.act = nn.ELU()
-        # Fixed by ROLE_EDGES, so it is rebuilt on load rather than stored in the file.
-        self.register_buffer("adjacency", torch.from_numpy(role_adjacency()), persistent=False)
-
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        # A is symmetric, so A @ h over the J axis gathers each joint's neighbours untransposed.
-        h = self.act(self.adjacency @ self.spatial(x))
-        h = self.temporal(h.permute(0, 3, 1, 2)).permute(0, 2, 3, 1)
-        # Padding k // 2 on each side leaves ceil(T / stride) frames, as many as x[:, ::stride].
-        return self.act(h + self.residual(x[:, ::self.stride]))
-
-
-def joint_nodes(x: torch.Tensor) -> torch.Tensor:
-    """Per-joint node signals of feature windows.
-
-    Args:
-        x: ``(B, T, F)`` features (the first :data:`JOINT_COLUMNS` are positions then
-            velocities, each ``(J, 3)`` flattened).
-
-    Returns:
-        ``(B, T, J, 6)``: each role's position (x, y, z) then velocity (x, y, z).
-    """
-    b, t, _ = x.shape
-    nodes = x[..., :JOINT_COLUMNS].reshape(b, t, 2, len(ROLES), 3)
-    return nodes.permute(0, 1, 3, 2, 4).reshape(b, t, len(ROLES), 6)
-
-
-class EmotionGraphNet(_Heads):
-    """Spatial-temporal graph network (``"stgcn"``): ``(B, T, F)`` to ``(B, C)`` logits.
-
-    The joint columns become ``(B, T, J, 6)`` node signals (:func:`joint_nodes`);
-    blocks after the first halve the frame rate, as ST-GCN's later layers do, which keeps CPU
-    training short and widens what each temporal convolution sees.
-    """
-
-    def __init__(self, config: ClassifierConfig) -> None:
-        super().__init__(config, config.graph_channels + config.affect_channels)
-        c = config.graph_channels
-        self.blocks = nn.Sequential(*(
-            _GraphBlock(6 if k == 0 else c, c, 1 if k == 0 else 2)
-            for k in range(config.graph_blocks)
-        ))
-        a = config.affect_channels
-        self.affect = nn.Sequential(
-            nn.Conv1d(NUM_FEATURES - JOINT_COLUMNS, a, 5, padding=2), nn.ELU(), _Block(a, 2)
-        )
-
-    def embed(self, x: torch.Tensor) -> torch.Tensor:
-        """``(B, E = graph_channels + affect_channels)``: graph and affect summaries."""
-        graph = self.blocks(joint_nodes(x)).mean((1, 2))
-        affect = self.affect(x[..., JOINT_COLUMNS:].transpose(1, 2)).mean(-1)
-        return torch.cat((graph, affect), 1)
-
-
-#: Network constructors by :attr:`ClassifierConfig.architecture`.
-ARCHITECTURES: dict[str, Callable[[ClassifierConfig], nn.Module]] = {
-    "tcn": EmotionClassifierNet,
-    "stgcn": EmotionGraphNet,
-}
-
-
-def build_net(config: ClassifierConfig) -> nn.Module:
-    """The untrained network of ``config.architecture``."""
-    return ARCHITECTURES[config.architecture](config)
 
 
 @dataclass(frozen=True)

@@ -58,11 +58,11 @@ from emotive.eval.classifier import (
     SHARED_STYLE_OF,
     ClassifierConfig,
     EmotionClassifier,
-    build_net,
     role_track,
     track_features,
 )
 from emotive.eval.classifier_augment import augment
+from emotive.eval.classifier_nets import build_net
 from emotive.eval.classifier_probes import joint_noise, spinning_figure
 from emotive.io.atomic import atomic_output
 

@@ -54,24 +54,23 @@ import math
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 import torch
 
 from emotive.core.motion import Motion
-from emotive.core.ops import resample
 from emotive.core.roles import resolve_roles
 from emotive.data.emotion import Emotion, EmotionSchedule, coerce_emotion
-from emotive.errors import PathError, RigError
+from emotive.errors import PathError
 from emotive.features.movement import LOWPASS_HZ
 from emotive.ik.foot_lock import initial_lock_state, leg_rig, lock_feet
 from emotive.models.gait.affect import gait_affective
 from emotive.models.gait.agents import AgentBatch, empty_batch, joined, kept
 from emotive.models.gait.controls import MIN_TURN_FACTOR
-from emotive.models.gait.data import canonical_frames, clip_features
 from emotive.models.gait.model import GaitModel
 from emotive.models.gait.network import GaitInputs, same_hemisphere
+from emotive.models.gait.primer import primer_features
 from emotive.paths import GroundPath, waypoints
 from emotive.paths.bank import PathBank
 from emotive.transforms.kinematics import PoseFK
@@ -578,44 +577,6 @@ class GaitGenerator:
                        (height - self._local[mv, 1]).double().numpy())
         return GaitFrame(tuple(self._order), rotations.double().numpy(),
                          positions.double().numpy(), world, self._batch.emotion.copy(), xz)
-
-
-def primer_features(primer: Motion, controls: Any) -> dict[str, np.ndarray]:
-    """Per-frame network inputs of a primer clip, as in training, at the model's rate.
-
-    Args:
-        primer: a clip on the model's rig (same joint names and hierarchy).
-        controls: the model's :class:`~emotive.models.gait.controls.GaitControls`.
-
-    Returns:
-        :func:`~emotive.models.gait.data.clip_features` of the clip resampled to
-        ``controls.fps``, with ``rotations`` made heading-canonical per frame (the mover in the
-        standing pose's hemisphere); ``T >= 2`` frames.
-
-    Raises:
-        RigError: not a motion, another rig, or fewer than two frames.
-    """
-    sk = controls.skeleton
-    if not isinstance(primer, Motion):
-        raise RigError(f"a primer must be a Motion, got {type(primer).__name__}")
-    if primer.skeleton.names != sk.names or not np.array_equal(primer.skeleton.parents,
-                                                               sk.parents):
-        raise RigError(
-            f"primer {primer.metadata.get('name', '')!r} is on another rig "
-            f"({primer.skeleton.num_joints} joints) than the model's ({sk.num_joints} "
-            "joints of the Bandai Namco rig): give a clip of the training rig"
-        )
-    if abs(primer.fps - controls.fps) > 1e-6 * controls.fps:
-        primer = resample(primer, controls.fps)
-    if primer.num_frames < 2:
-        raise RigError("a primer needs at least two frames at the model's frame rate")
-    f = clip_features(primer)
-    rot, _ = canonical_frames(f["rotations"], f["positions"], f["heading"], f["root_xz"],
-                              controls.mover)
-    mv = controls.mover
-    rot[:, mv] *= np.where((rot[:, mv] @ controls.standing_rotations[mv])[:, None] < 0, -1.0, 1.0)
-    f["rotations"] = rot
-    return f
 
 
 def _place(canonical: np.ndarray, heading: np.ndarray, xz: np.ndarray, lift: np.ndarray

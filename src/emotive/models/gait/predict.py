@@ -5,7 +5,7 @@ helpers it shares with the QuaterNet baseline's
 (:class:`~emotive.models.gait.quaternet.predict.QuaterNetPredictor`).
 
 Both see the primer through the same per-frame inputs as in training
-(:func:`~emotive.models.gait.generate.primer_features`), run it through the network
+(:func:`~emotive.models.gait.primer.primer_features`), run it through the network
 teacher-forced, then feed back their own predictions. The protocol gives no trajectory, so both
 walk straight on from the primer's last position along its last heading:
 

@@ -1,7 +1,7 @@
 """The QuaterNet baseline as a Table 1 predictor (:class:`emotive.eval.table1.Predictor`).
 
 It sees the primer through the gait network's per-frame inputs
-(:func:`~emotive.models.gait.generate.primer_features`), runs it through the network
+(:func:`~emotive.models.gait.primer.primer_features`), runs it through the network
 teacher-forced, then feeds back its own predictions. QuaterNet reads no emotion: the movement
 inputs continue the primer's own pace (the last step frequency and low-passed speed held, the
 phase advancing, no curvature); its root moves at that speed along the primer's last heading,
@@ -22,8 +22,8 @@ import torch
 from emotive.core.motion import Motion
 from emotive.core.ops import heading, resample
 from emotive.models.gait.controls import GaitControls
-from emotive.models.gait.generate import primer_features
 from emotive.models.gait.predict import back_to_rate, frames_at
+from emotive.models.gait.primer import primer_features
 from emotive.models.gait.quaternet.network import QuaterNetwork
 from emotive.transforms.np_rotations import quaternion_multiply, yaw_quaternion
 
