@@ -16,7 +16,7 @@ $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install -q --upgrade pip
 	$(BIN)/python -m pip install -q torch==2.13.0
-	$(BIN)/python -m pip install -q -e '.[dev,bench,eval,docs]'
+	$(BIN)/python -m pip install -q -e '.[dev,bench,eval,docs,serve,onnx]'
 	touch $@
 
 install: $(STAMP)
@@ -52,6 +52,9 @@ demo: install
 		--out demo_out/features.csv --plot demo_out/features.png
 	@echo "demo outputs in $(CURDIR)/demo_out:"
 	@ls -1 demo_out
+	@echo ""
+	@echo "live agents in the browser: $(BIN)/emotive serve"
+	@echo "  then open http://127.0.0.1:8000/?demo=1 (a few agents walking; click to add more)"
 
 bench: install
 	$(BIN)/python -m bench.run

@@ -15,13 +15,12 @@ stays free for the application.
 
 from __future__ import annotations
 
-import time
 from collections import deque
 
 import numpy as np
 import torch
 
-from bench.common import comparison, median_seconds, resident_mb, unpinned_threads
+from bench.common import comparison, median_seconds, print_rows, resident_mb, unpinned_threads
 from emotive.core.roles import JointRoles, resolve_roles
 from emotive.eval.feet import foot_skating
 from emotive.io.bvh import read_bvh
@@ -243,10 +242,7 @@ def skate_rows(model: GaitModel, clips: list, agents: int = 4, seconds: float = 
 
 def main() -> None:
     """Print the benchmark rows and the total time."""
-    start = time.perf_counter()
-    for row in run():
-        print(row)
-    print(f"{time.perf_counter() - start:.1f} s")
+    print_rows(run)
 
 
 if __name__ == "__main__":

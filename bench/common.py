@@ -107,3 +107,11 @@ def write_record(path: Any, record: dict[str, Any]) -> None:
     with atomic_output(path) as tmp:
         tmp.write_text(json.dumps(record, indent=1, default=float))
     print(f"\nwrote {path}")
+
+
+def print_rows(run: Callable[[], list[dict]]) -> None:
+    """Run one benchmark module's ``run``, print each row and the total time."""
+    start = time.perf_counter()
+    for row in run():
+        print(row)
+    print(f"{time.perf_counter() - start:.1f} s")

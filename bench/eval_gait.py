@@ -14,6 +14,8 @@ Bandai Namco data and the committed checkpoints (``src/emotive/assets/gait/``).
   figure-8, plus the angry-to-happy and sad-to-happy transitions): perceived emotion against the
   classifier's accuracy on real held-out walks, transition smoothness, foot skating against real
   held-out walks, path following.
+* Emotion control (:mod:`bench.eval_gait_control`): speed over sad-happy blends, speed and arm
+  swing along valence and arousal lines, the classifier at the four labels' points.
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ from pathlib import Path
 import numpy as np
 from rich.progress import track
 
+from bench import eval_gait_control as control
 from bench.common import machine_info, write_record
 from emotive.data.clips import load_clips
 from emotive.data.emotion import ALL_LABELS, Emotion, EmotionSchedule
@@ -211,7 +214,8 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=HERE / "results" / "gait-eval.json")
     parser.add_argument("--quick", action="store_true",
                         help="dataset-1 Table 1 only, 1,000 long-horizon steps, 2 seeds")
-    parser.add_argument("--part", choices=("all", "table1", "long", "suites"), default="all")
+    parser.add_argument("--part", choices=("all", "table1", "long", "suites", "control"),
+                        default="all")
     parser.add_argument("--checkpoint", type=Path, default=None,
                         help="a gait checkpoint to evaluate instead of the pretrained one (and "
                         "beside the committed models in Table 1)")
@@ -224,6 +228,13 @@ def main() -> None:
     if args.part in ("all", "suites"):
         record["turns"] = turn_speeds(args.checkpoint)
         record["suites"] = generated_suites(2 if args.quick else SEEDS, args.checkpoint)
+    if args.part in ("all", "control"):
+        model = get_model("gait").load("generator", weights=args.checkpoint).model
+        record["control"] = {
+            "blend": control.blend_rows(model),
+            "valence_arousal": control.valence_arousal_rows(model),
+            "label_points": control.label_point_rows(model, load_default_classifier()),
+        }
     write_record(args.out, record)
 
 

@@ -22,6 +22,8 @@ from bench import (
     bench_kinematics,
     bench_lgb,
     bench_mar,
+    bench_onnx,
+    bench_serve,
 )
 from bench.common import machine_info, pinned_threads
 from emotive.data import dataset_dir
@@ -59,6 +61,9 @@ def main() -> None:
         ("crowds", lambda: bench_gait.crowd_rows(
             bench_gait.default_model(), agents=300 if args.quick else 1000)),
         ("feet", lambda: bench_gait.skate_rows(bench_gait.default_model(), d1)),
+        ("onnx", lambda: bench_onnx.run(agents=(1, 100) if args.quick else (1, 100, 1000),
+                                        repeats=3 if args.quick else 5)),
+        ("serve", lambda: bench_serve.run(seconds=5.0 if args.quick else 10.0)),
         ("mar", lambda: bench_mar.run(frames=60 if args.quick else 200,
                                       baseline_frames=10 if args.quick else 20)),
         ("fcrbm", lambda: bench_fcrbm.run(repeats=1 if args.quick else 3)),

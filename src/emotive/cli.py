@@ -1,8 +1,8 @@
 """The ``emotive`` command line: one entry point, verb-first sub-commands.
 
 ``generate``, ``train``, ``transfer``, ``reconstruct``, ``retarget``, ``evaluate``, ``models``,
-``info``, ``features``, ``preview``, ``classify`` and ``data``; each lives in
-:mod:`emotive.commands` and this module registers them. The old spellings
+``info``, ``features``, ``preview``, ``classify``, ``data``, ``serve`` and ``export``; each
+lives in :mod:`emotive.commands` and this module registers them. The old spellings
 ``fcrbm train|generate`` and ``resample`` work for one release, with one deprecation line.
 
 :func:`main` runs the app without click's own error handling, so that every invalid value,
@@ -24,6 +24,7 @@ import emotive
 from emotive.commands.classify import classify
 from emotive.commands.data import app as data_app
 from emotive.commands.evaluate import evaluate
+from emotive.commands.export import app as export_app
 from emotive.commands.fcrbm import app as fcrbm_app
 from emotive.commands.generate import generate
 from emotive.commands.info import features, info
@@ -32,6 +33,7 @@ from emotive.commands.reconstruct import reconstruct
 from emotive.commands.render import preview
 from emotive.commands.resample import resample
 from emotive.commands.retarget import retarget
+from emotive.commands.serve import serve
 from emotive.commands.train import app as train_app
 from emotive.commands.transfer import transfer
 from emotive.errors import EmotiveError
@@ -74,6 +76,8 @@ app.command("features")(features)
 app.command("preview")(preview)
 app.command("classify")(classify)
 app.add_typer(data_app, name="data")
+app.command("serve")(serve)
+app.add_typer(export_app, name="export")
 app.command("resample", hidden=True)(resample)
 app.add_typer(fcrbm_app, name="fcrbm", hidden=True)
 

@@ -73,7 +73,7 @@ def test_help_lists_the_verbs_and_hides_the_old_spellings(monkeypatch, capsys):
     code, out, _ = run_main(monkeypatch, capsys, "--help")
     assert code == 0
     for verb in ("generate", "train", "transfer", "reconstruct", "evaluate", "models", "info",
-                 "features", "preview", "classify", "data"):
+                 "features", "preview", "classify", "data", "serve", "export"):
         assert verb in out
     assert "resample" not in out and "fcrbm " not in out
     code, out, _ = run_main(monkeypatch, capsys, "train", "--help")

@@ -257,7 +257,7 @@ def shared_data() -> Path:
             return folder
     require_data_or_skip(
         "the Bandai Namco archives are not in EMOTIVE_DATA or ../shared/data "
-        "(see /work/shared/data/README.md)"
+        "(see the README.md beside the data)"
     )
     raise AssertionError("unreachable")
 

@@ -80,6 +80,7 @@ __all__ = [
     "coerce_blend",
     "coerce_emotion",
     "label_points",
+    "point_emotion",
     "style_to_label",
     "valence_arousal",
     "weights_from_valence_arousal",
@@ -301,12 +302,14 @@ class EmotionSchedule:
 
     @classmethod
     def from_keyframes(
-        cls, keyframes: Sequence[Mapping[str, Any]], labels: Sequence[str] = DEFAULT_LABELS
+        cls, keyframes: Sequence[Mapping[str, Any]], labels: Sequence[str] = DEFAULT_LABELS,
+        points_over: Sequence[str] | None = None,
     ) -> EmotionSchedule:
         """A schedule from ``[{"t": 0, "emotion": {"angry": 1}}, {"t": 10, "emotion": "happy"}]``.
 
         Each keyframe has ``t`` (seconds) and either ``emotion`` (a mapping or the text form of
-        :meth:`Emotion.parse`) or ``valence`` and ``arousal``.
+        :meth:`Emotion.parse`) or ``valence`` and ``arousal`` (blended over ``points_over``,
+        default all ``labels``: :func:`point_emotion`).
 
         Raises:
             EmotionError: naming the keyframe and what is wrong with it.
@@ -346,7 +349,7 @@ class EmotionSchedule:
                         raise EmotionError('"emotion" must be a mapping or text like "happy=1"')
                 elif "valence" in frame and "arousal" in frame:
                     point = check_valence_arousal(frame["valence"], frame["arousal"])
-                    emotion = Emotion.from_valence_arousal(*point, labels)
+                    emotion = point_emotion(point, labels, points_over)
                 else:
                     raise EmotionError('give "emotion", or "valence" and "arousal"')
             except EmotionError as exc:
@@ -362,9 +365,12 @@ class EmotionSchedule:
 
     @classmethod
     def from_json(
-        cls, source: str | os.PathLike, labels: Sequence[str] = DEFAULT_LABELS
+        cls, source: str | os.PathLike, labels: Sequence[str] = DEFAULT_LABELS,
+        points_over: Sequence[str] | None = None,
     ) -> EmotionSchedule:
         """A schedule from JSON text or a ``.json`` file holding a list of keyframes.
+
+        Keyframes as for :meth:`from_keyframes` (``points_over`` likewise).
 
         Raises:
             EmotionError: the file is missing or not valid JSON, or a keyframe is bad.
@@ -385,7 +391,7 @@ class EmotionSchedule:
         except json.JSONDecodeError as exc:
             raise EmotionError(f"{where} is not valid JSON ({exc})") from None
         try:
-            return cls.from_keyframes(data, labels)
+            return cls.from_keyframes(data, labels, points_over)
         except EmotionError as exc:
             raise EmotionError(f"{where}: {exc}") from None
 
@@ -533,7 +539,28 @@ def _point(value: str | Mapping[str, Any]) -> tuple[float, float] | None:
     return check_valence_arousal(pairs["valence"], pairs["arousal"], f"emotion {value!r}")
 
 
-def coerce_blend(value: EmotionLike, labels: Sequence[str]) -> Emotion:
+def point_emotion(point: Sequence[float], labels: Sequence[str],
+                  points_over: Sequence[str] | None = None) -> Emotion:
+    """The blend over ``labels`` of a valence/arousal ``point``.
+
+    Args:
+        point: ``(valence, arousal)``.
+        labels: the labels of the result.
+        points_over: the labels the point's kernel blends (default: all of ``labels``); a
+            model whose extra labels are styles rather than emotions (the gait network's
+            dataset-2 styles) blends a point over its emotions only.
+
+    Raises:
+        EmotionError: a bad point, or ``points_over`` not among ``labels``.
+    """
+    if points_over is None:
+        return Emotion.from_valence_arousal(*point, labels)
+    near = Emotion.from_valence_arousal(*point, points_over)
+    return Emotion.from_dict(near.to_dict(), labels)
+
+
+def coerce_blend(value: EmotionLike, labels: Sequence[str],
+                 points_over: Sequence[str] | None = None) -> Emotion:
     """One constant emotion over ``labels``.
 
     :func:`coerce_emotion` of a value that does not change over time (no schedule, keyframes or
@@ -550,7 +577,7 @@ def coerce_blend(value: EmotionLike, labels: Sequence[str]) -> Emotion:
     if isinstance(value, str | Mapping):
         point = _point(value)
         if point is not None:
-            return Emotion.from_valence_arousal(*point, labels)
+            return point_emotion(point, labels, points_over)
         if isinstance(value, Mapping):
             return Emotion.from_dict(value, labels)
         return Emotion.parse(value, labels)
@@ -560,7 +587,8 @@ def coerce_blend(value: EmotionLike, labels: Sequence[str]) -> Emotion:
     )
 
 
-def coerce_emotion(value: EmotionLike, labels: Sequence[str]) -> EmotionSchedule:
+def coerce_emotion(value: EmotionLike, labels: Sequence[str],
+                   points_over: Sequence[str] | None = None) -> EmotionSchedule:
     """Any emotion a user or a caller can give, as a schedule over a model's ``labels``.
 
     Args:
@@ -570,6 +598,8 @@ def coerce_emotion(value: EmotionLike, labels: Sequence[str]) -> EmotionSchedule
             ``labels``; a list of keyframes; or JSON keyframes as text or a path to a file.
         labels: the model's ``C`` labels. Labels of ``value`` that the model lacks must weigh
             zero.
+        points_over: the labels a valence/arousal point blends (:func:`point_emotion`;
+            default: all of ``labels``).
 
     Returns:
         The schedule over ``labels`` (one keyframe at ``t = 0`` for a constant emotion), with
@@ -586,15 +616,15 @@ def coerce_emotion(value: EmotionLike, labels: Sequence[str]) -> EmotionSchedule
     if isinstance(value, EmotionSchedule):
         return value.relabel(labels)
     if isinstance(value, os.PathLike):
-        return EmotionSchedule.from_json(value, labels)
+        return EmotionSchedule.from_json(value, labels, points_over)
     if isinstance(value, str):
         text = value.strip()
         if text.startswith("[") or text.endswith(".json") or os.sep in text:
-            return EmotionSchedule.from_json(text, labels)
+            return EmotionSchedule.from_json(text, labels, points_over)
     if isinstance(value, Sequence) and not isinstance(value, str):
-        return EmotionSchedule.from_keyframes(value, labels)
+        return EmotionSchedule.from_keyframes(value, labels, points_over)
     if isinstance(value, str | Mapping):
         point = _point(value)
         if point is not None:
-            return EmotionSchedule.constant(Emotion.from_valence_arousal(*point, labels), point)
-    return EmotionSchedule.constant(coerce_blend(value, labels))
+            return EmotionSchedule.constant(point_emotion(point, labels, points_over), point)
+    return EmotionSchedule.constant(coerce_blend(value, labels, points_over))

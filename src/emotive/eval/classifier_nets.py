@@ -11,7 +11,7 @@ Legend: ``B`` windows, ``T`` frames, ``F`` features, ``J`` joint roles.
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 import torch
@@ -19,8 +19,19 @@ from torch import nn
 
 from emotive.core.roles import ROLE_PARENT, ROLES
 
-if TYPE_CHECKING:
-    from emotive.eval.classifier import ClassifierConfig
+
+class NetSizes(Protocol):
+    """What a network reads from its :class:`~emotive.eval.classifier.ClassifierConfig`."""
+
+    labels: tuple[str, ...]
+    style_labels: tuple[str, ...]
+    architecture: str
+    channels: int
+    blocks: int
+    graph_channels: int
+    graph_blocks: int
+    affect_channels: int
+    dropout: float
 
 #: Number of per-frame feature columns.
 NUM_FEATURES = 2 * 3 * len(ROLES) + 18 + 8
@@ -49,7 +60,7 @@ class _Heads(nn.Module):
     Subclasses define ``embed(x)``: ``(B, T, F)`` standardized features to ``(B, E)``.
     """
 
-    def __init__(self, config: ClassifierConfig, width: int) -> None:
+    def __init__(self, config: NetSizes, width: int) -> None:
         super().__init__()
         self.drop = nn.Dropout(config.dropout)
         self.out = nn.Linear(width, len(config.labels))
@@ -75,7 +86,7 @@ class _Heads(nn.Module):
 class EmotionClassifierNet(_Heads):
     """Temporal CNN (``"tcn"``): ``(B, T, F)`` standardized features to ``(B, C)`` logits."""
 
-    def __init__(self, config: ClassifierConfig) -> None:
+    def __init__(self, config: NetSizes) -> None:
         super().__init__(config, config.channels)
         c = config.channels
         self.inp = nn.Sequential(nn.Conv1d(NUM_FEATURES, c, 5, padding=2), nn.ELU())
@@ -157,7 +168,7 @@ class EmotionGraphNet(_Heads):
     training short and widens what each temporal convolution sees.
     """
 
-    def __init__(self, config: ClassifierConfig) -> None:
+    def __init__(self, config: NetSizes) -> None:
         super().__init__(config, config.graph_channels + config.affect_channels)
         c = config.graph_channels
         self.blocks = nn.Sequential(*(
@@ -176,13 +187,13 @@ class EmotionGraphNet(_Heads):
         return torch.cat((graph, affect), 1)
 
 
-#: Network constructors by :attr:`ClassifierConfig.architecture`.
-ARCHITECTURES: dict[str, Callable[[ClassifierConfig], nn.Module]] = {
+#: Network constructors by :attr:`~emotive.eval.classifier.ClassifierConfig.architecture`.
+ARCHITECTURES: dict[str, Callable[[NetSizes], nn.Module]] = {
     "tcn": EmotionClassifierNet,
     "stgcn": EmotionGraphNet,
 }
 
 
-def build_net(config: ClassifierConfig) -> nn.Module:
+def build_net(config: NetSizes) -> nn.Module:
     """The untrained network of ``config.architecture``."""
     return ARCHITECTURES[config.architecture](config)

@@ -14,7 +14,9 @@ over the whole contact, which needs the future. A live stream has only the frame
    (heel off) it keeps the toe where it was when the heel lifted; a foot in contact also
    keeps its heading (the yaw of heel -> toe) from when the contact began. Anchors are taken
    from the *corrected* foot, so the corrections never jump. In swing the corrections fade
-   out geometrically (:attr:`LockSettings.release`), a smooth release over a few frames.
+   out along a smoothstep over :attr:`LockSettings.release_frames` frames (the factor
+   ``1 - (3 x^2 - 2 x^3)``, ``x`` the frames since the contact ended over that count), so the
+   released foot starts and ends its catch-up with zero relative velocity.
 3. **Two-bone IK per leg.** The ankle is moved by the correction (heights are left as
    predicted, except that an ankle the straight leg cannot reach is lifted until it can) by
    an analytic hip-knee-ankle solve that keeps the knee in its current bending plane and the
@@ -58,9 +60,10 @@ class LockSettings:
             moves at about twice it.
         body_off: share of the body's walking speed added to ``speed_off``.
         max_correction: a foot whose correction would exceed this many leg lengths is released
-            (a foot dragged along, not planted).
-        release: factor on the correction per frame in swing (0.6: under 2 % left after 8
-            frames).
+            (a foot dragged along, not planted). 0.35 holds the toes of slow sad walks, whose
+            unlocked planted feet drift up to about 0.3 m over a stance, until they lift; at
+            0.25 they were let go while still on the floor, a one-frame slide of about 8 cm.
+        release_frames: frames over which a released foot's correction fades to zero.
     """
 
     height_on: float = 0.03
@@ -69,8 +72,8 @@ class LockSettings:
     speed_off: float = 1.2
     body_on: float = 1.3
     body_off: float = 1.8
-    max_correction: float = 0.25
-    release: float = 0.6
+    max_correction: float = 0.35
+    release_frames: int = 6
 
 
 @dataclass(frozen=True)
@@ -138,6 +141,7 @@ class LockState(NamedTuple):
         correction: ``(B, 2, 2)`` current horizontal correction of each foot, metres.
         yaw_anchor: ``(B, 2)`` world yaw (radians) each foot in contact is held at.
         yaw_correction: ``(B, 2)`` current yaw correction of each foot, radians.
+        released: ``(B, 2)`` frames since each foot's contact ended (0 while in contact).
     """
 
     previous: np.ndarray
@@ -146,13 +150,30 @@ class LockState(NamedTuple):
     correction: np.ndarray
     yaw_anchor: np.ndarray
     yaw_correction: np.ndarray
+    released: np.ndarray
 
 
 def initial_lock_state(agents: int) -> LockState:
     """The state of ``agents`` new agents: nothing planted, no correction."""
     return LockState(np.full((agents, 2, 2, 3), np.nan), np.zeros((agents, 2, 2), dtype=bool),
                      np.zeros((agents, 2, 2)), np.zeros((agents, 2, 2)), np.zeros((agents, 2)),
-                     np.zeros((agents, 2)))
+                     np.zeros((agents, 2)), np.zeros((agents, 2)))
+
+
+def _fade(released: np.ndarray, frames: int) -> np.ndarray:
+    """``(B, 2)`` factor taking a correction from ``released - 1`` to ``released`` frames.
+
+    The correction left ``k`` frames after a contact ended is ``c0 * s(k)``, ``s`` the
+    smoothstep from 1 to 0 over ``frames`` frames, so one frame scales it by
+    ``s(k) / s(k - 1)``.
+    """
+
+    def left(k: np.ndarray) -> np.ndarray:
+        x = np.clip(k / max(frames, 1), 0.0, 1.0)
+        return 1.0 - x * x * (3.0 - 2.0 * x)
+
+    before = left(released - 1.0)
+    return np.where(before > 0, left(released) / np.maximum(before, 1e-12), 0.0)
 
 
 def _conj(q: np.ndarray) -> np.ndarray:
@@ -199,8 +220,8 @@ def _contacts(rig: LegRig, state: LockState, feet: np.ndarray, body: np.ndarray,
     return on | (state.planted & ~off)
 
 
-def _corrections(state: LockState, feet: np.ndarray, planted: np.ndarray,
-                 settings: LockSettings) -> tuple[np.ndarray, np.ndarray]:
+def _corrections(state: LockState, feet: np.ndarray, planted: np.ndarray, fade: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray]:
     """This frame's ``(B, 2, 2)`` corrections and anchors (see the module docstring)."""
     xz = feet[..., [0, 2]]
     heel, toe = planted[..., 0], planted[..., 1]
@@ -212,8 +233,7 @@ def _corrections(state: LockState, feet: np.ndarray, planted: np.ndarray,
     ref = np.where(heel[..., None], xz[..., 0, :], xz[..., 1, :])
     fresh = ref + state.correction
     anchor = np.where((held_heel | held_toe)[..., None], state.anchor, fresh)
-    correction = np.where((heel | toe)[..., None], anchor - ref,
-                          settings.release * state.correction)
+    correction = np.where((heel | toe)[..., None], anchor - ref, fade[..., None] * state.correction)
     return correction, anchor
 
 
@@ -223,8 +243,8 @@ def _yaws(feet: np.ndarray) -> np.ndarray:
     return np.arctan2(d[..., 0], d[..., 2])
 
 
-def _yaw_corrections(state: LockState, yaw: np.ndarray, contact: np.ndarray,
-                     settings: LockSettings) -> tuple[np.ndarray, np.ndarray]:
+def _yaw_corrections(state: LockState, yaw: np.ndarray, contact: np.ndarray, fade: np.ndarray
+                     ) -> tuple[np.ndarray, np.ndarray]:
     """This frame's ``(B, 2)`` yaw corrections and anchors.
 
     A foot in contact keeps the yaw it had (corrected) when the contact began; in swing the
@@ -233,7 +253,7 @@ def _yaw_corrections(state: LockState, yaw: np.ndarray, contact: np.ndarray,
     fresh = yaw + state.yaw_correction
     anchor = np.where(contact & state.planted.any(-1), state.yaw_anchor, fresh)
     gap = np.angle(np.exp(1j * (anchor - yaw)))
-    return np.where(contact, gap, settings.release * state.yaw_correction), anchor
+    return np.where(contact, gap, fade * state.yaw_correction), anchor
 
 
 def _reachable(hip: np.ndarray, target: np.ndarray, reach: np.ndarray) -> np.ndarray:
@@ -313,16 +333,19 @@ def lock_feet(rig: LegRig, state: LockState, rotations: np.ndarray, points: np.n
     feet = np.stack((points[:, rig.chain[:, 3]], points[:, rig.toe]), 2)
     planted = _contacts(rig, state, feet, np.asarray(body_speed, dtype=np.float64), fps,
                         settings)
-    correction, anchor = _corrections(state, feet, planted, settings)
+    released = np.where(planted.any(-1), 0.0, state.released + 1.0)
+    fade = _fade(released, settings.release_frames)
+    correction, anchor = _corrections(state, feet, planted, fade)
     dragged = np.linalg.norm(correction, axis=-1) > settings.max_correction * rig.leg_length
     if dragged.any():
         planted = planted & ~dragged[..., None]
-        correction, anchor = _corrections(state, feet, planted, settings)
-    yaw_correction, yaw_anchor = _yaw_corrections(state, _yaws(feet), planted.any(-1),
-                                                  settings)
+        released = np.where(planted.any(-1), 0.0, state.released + 1.0)
+        fade = _fade(released, settings.release_frames)
+        correction, anchor = _corrections(state, feet, planted, fade)
+    yaw_correction, yaw_anchor = _yaw_corrections(state, _yaws(feet), planted.any(-1), fade)
     shift = np.zeros((len(points), 2, 3))
     shift[..., 0], shift[..., 2] = correction[..., 0], correction[..., 1]
     if np.abs(shift).max(initial=0.0) > 0 or np.abs(yaw_correction).max(initial=0.0) > 0:
         rotations, points = _two_bone(rig, rotations, points, shift, yaw_correction)
     return rotations, points, LockState(feet, planted, anchor, correction, yaw_anchor,
-                                        yaw_correction)
+                                        yaw_correction, released)

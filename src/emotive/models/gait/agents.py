@@ -50,6 +50,7 @@ class AgentBatch:
             :mod:`emotive.ik.foot_lock`).
         feet_yaw_anchor: ``(B, 2)`` world yaw each foot in contact is held at, radians.
         feet_yaw_correction: ``(B, 2)`` each foot's yaw correction, radians.
+        feet_released: ``(B, 2)`` frames since each foot's contact ended.
     """
 
     state: torch.Tensor
@@ -74,19 +75,21 @@ class AgentBatch:
     feet_correction: np.ndarray
     feet_yaw_anchor: np.ndarray
     feet_yaw_correction: np.ndarray
+    feet_released: np.ndarray
 
     @property
     def feet(self) -> LockState:
         """The foot-lock fields as the :func:`~emotive.ik.foot_lock.lock_feet` state."""
         return LockState(self.feet_previous, self.feet_planted, self.feet_anchor,
-                         self.feet_correction, self.feet_yaw_anchor, self.feet_yaw_correction)
+                         self.feet_correction, self.feet_yaw_anchor, self.feet_yaw_correction,
+                         self.feet_released)
 
     def with_feet(self, feet: LockState, **changes: object) -> AgentBatch:
         """A batch with the foot-lock state (and any other fields) replaced."""
         return replace(self, feet_previous=feet.previous, feet_planted=feet.planted,
                        feet_anchor=feet.anchor, feet_correction=feet.correction,
                        feet_yaw_anchor=feet.yaw_anchor, feet_yaw_correction=feet.yaw_correction,
-                       **changes)
+                       feet_released=feet.released, **changes)
 
     def __len__(self) -> int:
         return len(self.theta)

@@ -54,14 +54,14 @@ import math
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 import torch
 
 from emotive.core.motion import Motion
 from emotive.core.roles import resolve_roles
-from emotive.data.emotion import Emotion, EmotionSchedule, coerce_emotion
+from emotive.data.emotion import DEFAULT_LABELS, Emotion, EmotionSchedule, coerce_emotion
 from emotive.errors import PathError
 from emotive.features.movement import LOWPASS_HZ
 from emotive.ik.foot_lock import initial_lock_state, leg_rig, lock_feet
@@ -160,6 +160,15 @@ def check_pace(pace: float) -> float:
     return float(pace)
 
 
+def point_labels(labels: Sequence[str]) -> tuple[str, ...] | None:
+    """The labels a valence/arousal point blends for a network with ``labels``.
+
+    The four emotions it knows (happy, sad, angry, neutral), not the dataset-2 styles; ``None``
+    (all labels) for a network that knows none of them.
+    """
+    return tuple(label for label in DEFAULT_LABELS if label in labels) or None
+
+
 def to_model_schedule(emotion: EmotionLike, labels: Sequence[str]) -> EmotionSchedule:
     """An emotion or schedule over the model's ``labels``.
 
@@ -168,11 +177,16 @@ def to_model_schedule(emotion: EmotionLike, labels: Sequence[str]) -> EmotionSch
     ``"valence=0.5,arousal=0.2"``, a mapping, ``(C,)`` weights over ``labels``, keyframes or a
     JSON file of them. Labels of the input that the model lacks must weigh zero.
 
+    A valence/arousal point blends the four emotions only (:func:`point_labels`), not
+    the dataset-2 styles the network also knows: styles such as ``chimpira`` or ``active``
+    sit near the emotions on the circumplex, and blending them in made angry's own point read
+    as happy to the classifier (P(angry) 0.06 against 0.89 for the label).
+
     Raises:
         EmotionError: unknown names, negative, NaN or all-zero weights, or weight on a label
             the model was not trained with.
     """
-    return coerce_emotion(emotion, labels)
+    return coerce_emotion(emotion, labels, points_over=point_labels(labels))
 
 
 class GaitGenerator:
@@ -186,6 +200,13 @@ class GaitGenerator:
             caller's setting is restored after each call.
         foot_lock: hold planted feet still in every streamed frame
             (:mod:`emotive.ik.foot_lock`); ``False`` streams the network's raw poses.
+        network: the network to step instead of the model's torch network: an object with
+            the :class:`~emotive.models.gait.network.GaitNetwork` surface (``config``,
+            ``initial_state``, ``step`` and a call over warm-up windows, torch tensors in
+            and out), e.g. :class:`~emotive.models.gait.onnx_runtime.OnnxGaitNetwork` from
+            :func:`~emotive.models.gait.onnx_runtime.load_onnx_network`; it must be the
+            model's network (same config and weights). ``None``: the model's own network,
+            cast to ``dtype``.
 
     Example::
 
@@ -197,15 +218,15 @@ class GaitGenerator:
     """
 
     def __init__(self, model: GaitModel, seed: int = 0, dtype: torch.dtype = torch.float32,
-                 threads: int = 1, foot_lock: bool = True) -> None:
+                 threads: int = 1, foot_lock: bool = True, network: Any = None) -> None:
         if threads < 1:
             raise ValueError(f"threads must be at least 1, got {threads}")
         self.threads = int(threads)
         self.model = model
         self.seed = int(seed)
         self.dtype = dtype
-        net = model.network
-        self.network = net.to(dtype).eval()
+        net = model.network.to(dtype).eval() if network is None else network
+        self.network = net
         c = model.controls
         self.labels = model.labels
         self.fps = model.fps

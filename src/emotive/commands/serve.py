@@ -1,0 +1,67 @@
+"""``emotive serve``: one shared scene of walking agents for browsers and programs.
+
+Checks the settings (a host other than a loopback address needs ``--token``), opens the
+listening socket, loads the engine, prints the app's URLs and runs uvicorn until Ctrl-C
+(:mod:`emotive.serve`; the protocol is ``docs/serve.md``). The server and torch are imported
+inside the command so that ``emotive serve --help`` stays fast.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+import typer
+
+from emotive.commands.options import SeedOpt
+
+
+def serve(
+    host: Annotated[str, typer.Option("--host", help="Address to bind; any other than "
+                                      "127.0.0.1/localhost needs --token.")] = "127.0.0.1",
+    port: Annotated[int, typer.Option("--port", help="TCP port (0: any free one).")] = 8000,
+    max_agents: Annotated[int, typer.Option("--max-agents", help="Agents the scene may hold "
+                                            "at once.")] = 500,
+    token: Annotated[str | None, typer.Option(
+        "--token", help="Secret every /api request and the websocket must present "
+        "('Authorization: Bearer T' or ?token=T).", show_default=False)] = None,
+    model: Annotated[str, typer.Option("--model", help="Streaming model: gait (the main "
+                                       "network) or fcrbm.")] = "gait",
+    backend: Annotated[str, typer.Option("--backend", help="Where the gait network runs: "
+                                         "torch or onnx (ONNX Runtime).")] = "torch",
+    seed: SeedOpt = 0,
+    log_level: Annotated[str, typer.Option("--log-level", help="uvicorn's log level: "
+                                           "critical, error, warning, info, debug.")]
+    = "warning",
+) -> None:
+    """Serve the live scene: the browser app at /, the websocket at /ws, the API at /api."""
+    from emotive.serve.errors import ServeError
+
+    try:
+        from emotive.serve.app import create_app
+        from emotive.serve.server import base_url, bind, bound_port, uvicorn_server
+        from emotive.serve.settings import ServeSettings
+    except ModuleNotFoundError as exc:
+        raise ServeError(f"emotive serve needs the serve extra ({exc.name} is missing): "
+                         "pip install 'emotive[serve]'") from None
+
+    settings = ServeSettings(host=host, port=port, token=token, model=model, backend=backend,
+                             seed=seed, max_agents=max_agents).checked()
+    sock = bind(settings.host, settings.port)
+    try:
+        app = create_app(settings)
+        url = base_url(settings.host, bound_port(sock))
+        query = f"?token={settings.token}&" if settings.token else "?"
+        typer.echo(f"emotive serve: {settings.model} on {settings.backend}, up to "
+                   f"{settings.max_agents} agents")
+        typer.echo(f"  app:   {url}/{query.rstrip('&?')}")
+        typer.echo(f"  demo:  {url}/{query}demo=1")
+        typer.echo(f"  ws:    {url.replace('http', 'ws', 1)}/ws  (protocol: docs/serve.md)")
+        typer.echo("  Ctrl-C stops the server.")
+        server = uvicorn_server(app, settings, log_level=log_level)
+        try:
+            server.run(sockets=[sock])
+        except KeyboardInterrupt:
+            pass
+        typer.echo("emotive serve: stopped")
+    finally:
+        sock.close()

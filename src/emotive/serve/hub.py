@@ -1,0 +1,146 @@
+"""Per-client outboxes on the event loop: frames fanned out without waiting for anyone.
+
+Each connected client has an :class:`Outbox` holding at most ``buffered_frames`` frames (the
+newest; an older one is dropped and counted, per client and in total) and its pending
+replies. The simulation thread never touches an outbox: :class:`LoopSink` hands each encoded
+frame to the event loop with ``call_soon_threadsafe``, where :meth:`Hub.publish` appends the
+same bytes object to every outbox and returns. A client whose frames overflowed without a
+break for ``stall_seconds`` (it stopped reading), or that lets more than ``max_replies``
+replies pile up, is marked stalled and its session closes it.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import time
+from collections import deque
+from collections.abc import Callable
+from typing import Any
+
+from emotive.serve.settings import ServeSettings
+
+
+class Outbox:
+    """What waits to be sent to one client: its replies first, then the newest frames.
+
+    Args:
+        client: the connection number.
+        frames: frames kept at most.
+        max_replies: replies kept at most before the client counts as stalled.
+        stall_seconds: seconds of continuous frame overflow before it counts as stalled.
+        clock: the time source, seconds.
+    """
+
+    def __init__(self, client: int, frames: int, max_replies: int, stall_seconds: float,
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        self.client = client
+        self.frames: deque[bytes] = deque()
+        self.replies: deque[dict[str, Any]] = deque()
+        self.max_frames = int(frames)
+        self.max_replies = int(max_replies)
+        self.stall_seconds = float(stall_seconds)
+        self.dropped = 0
+        self.stalled = asyncio.Event()
+        self._ready = asyncio.Event()
+        self._clock = clock
+        self._overflow_since: float | None = None
+
+    def put_frame(self, data: bytes) -> int:
+        """Queue a frame, dropping the oldest beyond the bound; returns the frames dropped."""
+        dropped = 0
+        if len(self.frames) >= self.max_frames:
+            self.frames.popleft()
+            dropped = 1
+            self.dropped += 1
+            now = self._clock()
+            if self._overflow_since is None:
+                self._overflow_since = now
+            elif now - self._overflow_since > self.stall_seconds:
+                self.stalled.set()
+        else:
+            self._overflow_since = None
+        self.frames.append(data)
+        self._ready.set()
+        return dropped
+
+    def put_reply(self, message: dict[str, Any]) -> None:
+        """Queue a reply (JSON-ready); too many unread ones mark the client stalled."""
+        if len(self.replies) >= self.max_replies:
+            self.stalled.set()
+            return
+        self.replies.append(message)
+        self._ready.set()
+
+    async def next(self) -> dict[str, Any] | bytes:
+        """The next thing to send: a reply if any is waiting, else the oldest kept frame."""
+        while not (self.replies or self.frames):
+            self._ready.clear()
+            await self._ready.wait()
+        if self.replies:
+            return self.replies.popleft()
+        return self.frames.popleft()
+
+
+class Hub:
+    """Every connected client's outbox, on the event loop.
+
+    Args:
+        settings: ``buffered_frames``, ``max_replies`` and ``stall_seconds``.
+    """
+
+    def __init__(self, settings: ServeSettings) -> None:
+        self.settings = settings
+        self.outboxes: dict[int, Outbox] = {}
+        self.dropped_frames = 0
+        self._next = 0
+
+    def open(self) -> Outbox:
+        """A new client's outbox."""
+        s = self.settings
+        box = Outbox(self._next, s.buffered_frames, s.max_replies, s.stall_seconds)
+        self._next += 1
+        self.outboxes[box.client] = box
+        return box
+
+    def close(self, box: Outbox) -> None:
+        """Forget a client."""
+        self.outboxes.pop(box.client, None)
+
+    def publish(self, data: bytes) -> None:
+        """Give one encoded frame to every client (event loop only)."""
+        for box in list(self.outboxes.values()):
+            self.dropped_frames += box.put_frame(data)
+
+    def notice(self, client: int, message: dict[str, Any]) -> None:
+        """Give one client a message, if it is still connected (event loop only)."""
+        box = self.outboxes.get(client)
+        if box is not None:
+            box.put_reply(message)
+
+
+class LoopSink:
+    """The simulation thread's :class:`~emotive.serve.simulation.Sink`: hands over to the loop.
+
+    Args:
+        hub: the clients.
+        loop: the event loop the hub lives on.
+    """
+
+    def __init__(self, hub: Hub, loop: asyncio.AbstractEventLoop) -> None:
+        self.hub = hub
+        self.loop = loop
+
+    def _call(self, fn: Callable[..., None], *args: Any) -> None:
+        try:
+            self.loop.call_soon_threadsafe(fn, *args)
+        except RuntimeError:
+            # The loop closed while the server stops; nobody is left to receive it.
+            pass
+
+    def frame(self, data: bytes) -> None:
+        """Hand a frame to every client without waiting."""
+        self._call(self.hub.publish, data)
+
+    def notice(self, client: int, message: dict[str, Any]) -> None:
+        """Hand a message to one client without waiting."""
+        self._call(self.hub.notice, client, message)

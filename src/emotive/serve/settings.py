@@ -1,0 +1,127 @@
+"""The server's settings: where it binds, which engine it runs, and its limits.
+
+One frozen :class:`ServeSettings` is made by the command (or by
+:func:`emotive.serve.testing.running_server`) and checked once by
+:meth:`ServeSettings.checked`: a host other than a loopback address needs a token, every
+limit must be positive, the model and backend must be known.
+"""
+
+from __future__ import annotations
+
+import ipaddress
+import math
+from dataclasses import dataclass, fields, replace
+
+from emotive.serve.errors import ServeError
+
+#: Models ``--model`` can name.
+MODELS = ("gait", "fcrbm")
+#: Backends ``--backend`` can name (ONNX Runtime runs the gait network only).
+BACKENDS = ("torch", "onnx")
+#: Host names that always mean this machine.
+LOOPBACK_NAMES = ("localhost",)
+
+
+def is_loopback(host: str) -> bool:
+    """Whether ``host`` is ``localhost`` or a loopback address (``127.0.0.0/8``, ``::1``)."""
+    if host.lower() in LOOPBACK_NAMES:
+        return True
+    try:
+        return ipaddress.ip_address(host.strip("[]")).is_loopback
+    except ValueError:
+        return False
+
+
+@dataclass(frozen=True)
+class ServeSettings:
+    """Everything one server needs to know.
+
+    Attributes:
+        host: address to bind (default ``127.0.0.1``; any other than a loopback address
+            needs ``token``).
+        port: TCP port (``0``: any free port).
+        token: shared secret every ``/api`` request and the websocket must present; ``None``
+            for none (loopback only).
+        model: ``"gait"`` (the main network) or ``"fcrbm"``.
+        backend: ``"torch"`` or ``"onnx"`` (the gait network's step on ONNX Runtime).
+        seed: seed of the agents' starting phases.
+        max_agents: agents the scene may hold at once.
+        max_message_bytes: largest control message, bytes (UTF-8).
+        max_depth: deepest nesting of ``[`` and ``{`` in a control message.
+        rate: control messages per second a client may send, sustained.
+        burst: control messages a client may send at once (the token bucket's size).
+        buffered_frames: newest frames kept for a client that reads slowly; older are dropped.
+        stall_seconds: a client whose frames overflowed for this long without a pause is
+            disconnected.
+        max_replies: replies waiting for a client that does not read them before it is
+            disconnected.
+        recording_seconds: longest recording, seconds of scene time.
+        recording_megabytes: most memory one recording may hold, MB.
+        kept_recordings: finished recordings kept for download (the oldest go first).
+    """
+
+    host: str = "127.0.0.1"
+    port: int = 8000
+    token: str | None = None
+    model: str = "gait"
+    backend: str = "torch"
+    seed: int = 0
+    max_agents: int = 500
+    max_message_bytes: int = 1_000_000
+    max_depth: int = 64
+    rate: float = 100.0
+    burst: int = 200
+    buffered_frames: int = 2
+    stall_seconds: float = 10.0
+    max_replies: int = 1000
+    recording_seconds: float = 600.0
+    recording_megabytes: float = 256.0
+    kept_recordings: int = 16
+
+    @classmethod
+    def names(cls) -> tuple[str, ...]:
+        """The setting names, as :func:`emotive.serve.testing.running_server` takes them."""
+        return tuple(f.name for f in fields(cls))
+
+    def checked(self) -> ServeSettings:
+        """These settings, if they are usable (a token given as ``""`` becomes ``None``).
+
+        Raises:
+            ServeError: a non-loopback host without a token, an unknown model or backend, a
+                port outside 0-65535, or a limit that is not a positive number.
+        """
+        token = self.token or None
+        if not is_loopback(self.host) and token is None:
+            raise ServeError(
+                f"--host {self.host} would let other machines control the server without a "
+                "password: add --token SECRET (e.g. --token \"$(openssl rand -hex 16)\"), or "
+                "bind 127.0.0.1")
+        if self.model not in MODELS:
+            raise ServeError(f"--model {self.model!r} is not a streaming model; use one of "
+                             f"{', '.join(MODELS)}")
+        if self.backend not in BACKENDS:
+            raise ServeError(f"--backend {self.backend!r} is unknown; use one of "
+                             f"{', '.join(BACKENDS)}")
+        if self.backend == "onnx" and self.model != "gait":
+            raise ServeError(f"--backend onnx runs the gait network only; drop it or use "
+                             f"--model gait (got --model {self.model})")
+        if not 0 <= self.port <= 65535:
+            raise ServeError(f"--port {self.port} is not a TCP port; use 1-65535 (0: any free)")
+        for name in ("max_agents", "max_message_bytes", "max_depth", "rate", "burst",
+                     "buffered_frames", "stall_seconds", "max_replies", "recording_seconds",
+                     "recording_megabytes", "kept_recordings"):
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
+                flag = name.replace("_", "-")
+                raise ServeError(f"{flag} must be a positive number, got {value!r}")
+        return replace(self, token=token)
+
+    @property
+    def ws_max_size(self) -> int:
+        """Largest websocket message uvicorn accepts, bytes.
+
+        Above :attr:`max_message_bytes`, so that a message somewhat too large still reaches
+        the server and gets an ``error`` reply; a far larger one closes the connection (code
+        1009).
+        """
+        return 2 * self.max_message_bytes + 65536

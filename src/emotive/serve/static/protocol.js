@@ -1,0 +1,173 @@
+// The websocket protocol of `emotive serve` (docs/serve.md): the binary frame decoder and a
+// connection that sends control messages, matches replies to requests by "ref", and measures
+// the round-trip latency with ping/pong.
+//
+// Legend: B agents in a frame, J joints of the rig, P points per agent (joints then end
+// sites), C emotion labels.
+
+const MAGIC = "EMF1";
+const HEADER_BYTES = 32;
+
+function floats(view, offset, count) {
+  const out = new Float32Array(count);
+  for (let i = 0; i < count; i++) out[i] = view.getFloat32(offset + 4 * i, true);
+  return out;
+}
+
+/**
+ * Decode one binary frame (little-endian, every block 4-byte aligned).
+ *
+ * @param {ArrayBuffer} buffer the websocket message.
+ * @returns {{frame: number, time: number, B: number, J: number, P: number, C: number,
+ *   ids: Int32Array, va: Float32Array, weights: Float32Array, mover: Float32Array,
+ *   rotations: Float32Array, points: Float32Array}} flat arrays: `va` (B, 2), `weights`
+ *   (B, C), `mover` (B, 3) metres, `rotations` (B, J, 4) quaternions w, x, y, z, `points`
+ *   (B, P, 3) metres.
+ * @throws {Error} when the magic or the length does not match the layout.
+ */
+export function decodeFrame(buffer) {
+  const view = new DataView(buffer);
+  if (buffer.byteLength < HEADER_BYTES) throw new Error(`frame of ${buffer.byteLength} bytes`);
+  const magic = String.fromCharCode(...new Uint8Array(buffer, 0, 4));
+  if (magic !== MAGIC) throw new Error(`frame magic ${JSON.stringify(magic)}, not ${MAGIC}`);
+  const frame = view.getUint32(4, true);
+  const time = view.getFloat64(8, true);
+  const B = view.getUint32(16, true);
+  const J = view.getUint32(20, true);
+  const P = view.getUint32(24, true);
+  const C = view.getUint32(28, true);
+  const expected = HEADER_BYTES + 4 * B * (1 + 2 + C + 3 + 4 * J + 3 * P);
+  if (buffer.byteLength !== expected) {
+    throw new Error(`frame of ${buffer.byteLength} bytes, layout needs ${expected}`);
+  }
+  let offset = HEADER_BYTES;
+  const ids = new Int32Array(B);
+  for (let b = 0; b < B; b++) ids[b] = view.getInt32(offset + 4 * b, true);
+  offset += 4 * B;
+  const blocks = {};
+  for (const [name, size] of [["va", 2], ["weights", C], ["mover", 3], ["rotations", 4 * J],
+                              ["points", 3 * P]]) {
+    blocks[name] = floats(view, offset, B * size);
+    offset += 4 * B * size;
+  }
+  return { frame, time, B, J, P, C, ids, ...blocks };
+}
+
+/** The websocket URL of the server this page came from, with the page's token. */
+export function socketUrl(token) {
+  const scheme = location.protocol === "https:" ? "wss:" : "ws:";
+  const query = token ? `?token=${encodeURIComponent(token)}` : "";
+  return `${scheme}//${location.host}/ws${query}`;
+}
+
+/**
+ * A websocket connection to the server.
+ *
+ * Callbacks: `onFrame(frame)` for each decoded frame, `onError(text)` for error replies and
+ * undecodable frames, `onOpen()` once it is open, `onClose(code)` when it closes.
+ */
+export class Connection {
+  constructor(url, { onFrame, onError, onOpen, onClose }) {
+    this.url = url;
+    this.onFrame = onFrame;
+    this.onError = onError;
+    this.onOpen = onOpen;
+    this.onClose = onClose;
+    this.nextRef = 1;
+    this.pending = new Map();
+    this.latencyMs = null;
+    this.socket = null;
+  }
+
+  /** Open the socket; resolves once it is open. */
+  open() {
+    return new Promise((resolve, reject) => {
+      const socket = new WebSocket(this.url);
+      socket.binaryType = "arraybuffer";
+      socket.addEventListener("open", () => {
+        this.onOpen();
+        resolve();
+      });
+      socket.addEventListener("close", (event) => {
+        for (const { fail } of this.pending.values()) fail(new Error("connection closed"));
+        this.pending.clear();
+        reject(new Error(`websocket closed with code ${event.code}`));
+        this.onClose(event.code);
+      });
+      socket.addEventListener("message", (event) => this.receive(event.data));
+      this.socket = socket;
+    });
+  }
+
+  receive(data) {
+    if (data instanceof ArrayBuffer) {
+      let frame;
+      try {
+        frame = decodeFrame(data);
+      } catch (err) {
+        this.onError(`bad frame: ${err.message}`);
+        return;
+      }
+      this.onFrame(frame);
+      return;
+    }
+    const msg = JSON.parse(data);
+    if (msg.type === "pong") this.latencyMs = performance.now() - msg.t;
+    const waiting = msg.ref !== undefined ? this.pending.get(msg.ref) : undefined;
+    if (waiting) {
+      this.pending.delete(msg.ref);
+      if (msg.type === "error") waiting.fail(new Error(msg.message));
+      else waiting.done(msg);
+    }
+    if (msg.type === "error") this.onError(msg.message);
+  }
+
+  get isOpen() {
+    return this.socket !== null && this.socket.readyState === WebSocket.OPEN;
+  }
+
+  /** Send a control message without waiting for its reply. */
+  send(message) {
+    if (this.isOpen) this.socket.send(JSON.stringify(message));
+  }
+
+  /** Send a control message; resolves with its reply, rejects on an error reply. */
+  request(message) {
+    const ref = this.nextRef++;
+    return new Promise((done, fail) => {
+      if (!this.isOpen) {
+        fail(new Error("not connected"));
+        return;
+      }
+      this.pending.set(ref, { done, fail });
+      this.socket.send(JSON.stringify({ ...message, ref }));
+    });
+  }
+
+  ping() {
+    this.send({ type: "ping", t: performance.now() });
+  }
+}
+
+/**
+ * A sender that sends at most `perSecond` messages a second and always sends the last value
+ * (so the final position of a dragged slider arrives).
+ */
+export function throttled(send, perSecond) {
+  const gap = 1000 / perSecond;
+  let last = -Infinity;
+  let timer = null;
+  let latest = null;
+  const flush = () => {
+    timer = null;
+    last = performance.now();
+    send(latest);
+  };
+  return (value) => {
+    latest = value;
+    if (timer !== null) return;
+    const wait = last + gap - performance.now();
+    if (wait <= 0) flush();
+    else timer = setTimeout(flush, wait);
+  };
+}

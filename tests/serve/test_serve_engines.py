@@ -1,0 +1,54 @@
+"""The engines behind ``--model`` and ``--backend``: FCRBM agents, the ONNX step, refusals."""
+
+from __future__ import annotations
+
+import asyncio
+
+import httpx
+import numpy as np
+import pytest
+
+from emotive.serve.engines import _optional_module, load_engine
+from emotive.serve.errors import ServeError
+from emotive.serve.testing import running_server
+from serve_client import WsClient
+
+
+async def _two_agents(url: str):
+    async with WsClient(url) as client:
+        ids = await client.add_agents(2, emotion={"valence": 0.6, "arousal": 0.4})
+        frames = await client.frames_after(15)
+        return ids, frames
+
+
+def test_empty_scene_steps_without_the_model():
+    engine = load_engine()
+    frame = engine.step()
+    assert frame.rotations.shape == (0, engine.skeleton.num_joints, 4)
+    assert engine.rest.num_frames == 1
+
+
+@pytest.mark.parametrize(("settings", "model", "backend"), [
+    ({"model": "fcrbm"}, "fcrbm", "torch"),
+    ({"backend": "onnx"}, "gait", "onnx"),
+])
+def test_optional_engines_stream(settings, model, backend):
+    pytest.importorskip(
+        "emotive.models.fcrbm.stream" if model == "fcrbm" else "emotive.models.gait.onnx_runtime")
+    with running_server(**settings) as url:
+        health = httpx.get(f"{url}/api/health").json()
+        sk = httpx.get(f"{url}/api/skeleton").json()
+        ids, frames = asyncio.run(_two_agents(url))
+    assert (health["model"], health["backend"]) == (model, backend)
+    last = frames[-1]
+    assert sorted(last.ids.tolist()) == sorted(ids)
+    assert last.rotations.shape[1] == len(sk["joints"])
+    assert last.emotion.shape[1] == len(sk["labels"])
+    np.testing.assert_allclose(last.valence_arousal, [[0.6, 0.4]] * 2, atol=1e-6)
+    assert np.isfinite(last.world).all()
+    assert np.abs(frames[0].world - last.world).max() > 0.01
+
+
+def test_a_missing_optional_module_is_a_typed_error():
+    with pytest.raises(ServeError, match=r"--backend onnx needs the module emotive\.nothing_here"):
+        _optional_module("emotive.nothing_here", "--backend onnx")
