@@ -23,6 +23,7 @@ from bench import (
     bench_lgb,
     bench_mar,
     bench_onnx,
+    bench_readme,
     bench_serve,
 )
 from bench.common import machine_info, pinned_threads
@@ -58,6 +59,7 @@ def main() -> None:
         ("gait", lambda: bench_gait.run(
             agents=(1, 10, 100) if args.quick else (1, 10, 100, 1000),
             baseline_agents=(1, 10) if args.quick else (1, 10, 100))),
+        ("readme", lambda: bench_readme.run(rounds=1 if args.quick else 3)),
         ("crowds", lambda: bench_gait.crowd_rows(
             bench_gait.default_model(), agents=300 if args.quick else 1000)),
         ("feet", lambda: bench_gait.skate_rows(bench_gait.default_model(), d1)),
