@@ -7,7 +7,6 @@ CI sets ``EMOTIVE_REQUIRE_TOOLS=1`` and installs them, which turns a skip into a
 from __future__ import annotations
 
 import json
-import os
 import shutil
 import subprocess
 from pathlib import Path
@@ -16,21 +15,15 @@ import numpy as np
 import pytest
 
 from emotive.io.bvh import read_bvh, write_bvh
+from tools import require_tool
 
 HERE = Path(__file__).resolve().parent
 THREEJS = HERE / "threejs"
 
 
-def _require(tool_ok: bool, reason: str) -> None:
-    if not tool_ok:
-        if os.environ.get("EMOTIVE_REQUIRE_TOOLS") == "1":
-            pytest.fail(f"EMOTIVE_REQUIRE_TOOLS=1 but {reason}")
-        pytest.skip(reason)
-
-
 def _blender(path: Path, frame: int) -> dict:
     exe = shutil.which("blender")
-    _require(exe is not None, "Blender is not installed (apt-get install blender)")
+    require_tool(exe is not None, "Blender is not installed (apt-get install blender)")
     out = subprocess.run(
         [exe, "-b", "--factory-startup", "--python-exit-code", "1",
          "--python", str(HERE / "blender_check.py"), "--", str(path), str(frame)],
@@ -43,7 +36,7 @@ def _blender(path: Path, frame: int) -> dict:
 
 def _threejs(path: Path) -> dict:
     node = shutil.which("node")
-    _require(
+    require_tool(
         node is not None and (THREEJS / "node_modules" / "three").is_dir(),
         f"node or three.js is missing (run: npm ci --prefix {THREEJS})",
     )

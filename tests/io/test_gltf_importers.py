@@ -10,7 +10,6 @@ when they are missing and npm is there.
 from __future__ import annotations
 
 import json
-import os
 import shutil
 import subprocess
 import sys
@@ -22,16 +21,10 @@ from test_gltf_writer import Read, standing_clip
 
 from emotive.io.bvh import read_bvh
 from emotive.io.gltf import write_gltf
+from tools import require_tool
 
 HERE = Path(__file__).resolve().parent
 GLTF_JS = HERE / "gltf_js"
-
-
-def _require(tool_ok: bool, reason: str) -> None:
-    if not tool_ok:
-        if os.environ.get("EMOTIVE_REQUIRE_TOOLS") == "1":
-            pytest.fail(f"EMOTIVE_REQUIRE_TOOLS=1 but {reason}")
-        pytest.skip(reason)
 
 
 @pytest.fixture(scope="session")
@@ -44,7 +37,7 @@ def node() -> str:
                        capture_output=True, timeout=300, check=False)
         installed = all((GLTF_JS / "node_modules" / p).is_dir()
                         for p in ("three", "gltf-validator"))
-    _require(exe is not None and installed,
+    require_tool(exe is not None and installed,
              f"node or the glTF node packages are missing (run: npm ci --prefix {GLTF_JS})")
     return exe
 
@@ -58,7 +51,8 @@ def _node_json(node: str, script: str, *args: object) -> dict:
 
 def _blender(path: Path, fps: float, frame: int) -> dict:
     exe = shutil.which("blender")
-    _require(exe is not None, "Blender is not installed (apt-get install blender python3-numpy)")
+    require_tool(exe is not None,
+                 "Blender is not installed (apt-get install blender python3-numpy)")
     out = subprocess.run(
         [exe, "-b", "--factory-startup", "--python-exit-code", "1",
          "--python", str(HERE / "blender_gltf_check.py"), "--", str(path), str(fps), str(frame)],

@@ -21,7 +21,8 @@ import numpy as np
 from emotive.core.motion import Motion
 from emotive.core.skeleton import Skeleton
 from emotive.data.emotion import EmotionSchedule
-from emotive.models.gait.generate import GaitFrame, GaitGenerator, point_labels
+from emotive.models.gait.agent_inputs import point_labels
+from emotive.models.gait.generate import GaitFrame, GaitGenerator
 from emotive.models.gait.model import load_gait_model
 from emotive.paths import GroundPath
 from emotive.serve.errors import ServeError

@@ -21,7 +21,7 @@ import numpy as np
 
 from emotive.data.emotion import EmotionSchedule, coerce_emotion
 from emotive.errors import EmotiveError
-from emotive.models.gait.generate import PACE_RANGE
+from emotive.models.gait.agent_inputs import PACE_RANGE
 from emotive.paths import GroundPath, circle, figure8, line, waypoints, zigzag
 from emotive.serve.errors import MessageError
 

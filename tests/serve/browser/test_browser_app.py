@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import io
 import math
-import os
 import shutil
 import struct
 from collections.abc import Callable, Iterator
@@ -26,6 +25,7 @@ import numpy as np
 import pytest
 
 from emotive.serve.testing import running_server
+from tools import require_tool
 
 #: Flags that give headless Chromium a software WebGL 2 (SwiftShader through ANGLE).
 CHROMIUM_FLAGS = ("--use-angle=swiftshader", "--enable-unsafe-swiftshader",
@@ -42,23 +42,16 @@ MAX_AGENTS = DEMO_AGENTS + 1
 TOKEN = "browser-test-token"
 
 
-def _require(tool_ok: bool, reason: str) -> None:
-    if not tool_ok:
-        if os.environ.get("EMOTIVE_REQUIRE_TOOLS") == "1":
-            pytest.fail(f"EMOTIVE_REQUIRE_TOOLS=1 but {reason}")
-        pytest.skip(reason)
-
-
 @pytest.fixture(scope="module")
 def browser() -> Iterator[Any]:
     """Headless Chromium, launched once for the module."""
     try:
         from playwright.sync_api import sync_playwright
     except ImportError:
-        _require(False, "Playwright is not installed (pip install playwright; its bundled "
-                        "driver is enough, no browser download)")
+        require_tool(False, "Playwright is not installed (pip install playwright; its bundled "
+                     "driver is enough, no browser download)")
     exe = shutil.which("chromium") or shutil.which("chromium-browser")
-    _require(exe is not None, "Chromium is not installed (apt-get install chromium)")
+    require_tool(exe is not None, "Chromium is not installed (apt-get install chromium)")
     with sync_playwright() as pw:
         chromium = pw.chromium.launch(executable_path=exe, args=list(CHROMIUM_FLAGS))
         yield chromium

@@ -51,7 +51,7 @@ which sets which foot leads and the timing of steps.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any, NamedTuple
@@ -61,11 +61,12 @@ import torch
 
 from emotive.core.motion import Motion
 from emotive.core.roles import resolve_roles
-from emotive.data.emotion import DEFAULT_LABELS, Emotion, EmotionSchedule, coerce_emotion
+from emotive.data.emotion import EmotionLike, EmotionSchedule
 from emotive.errors import PathError
 from emotive.features.movement import LOWPASS_HZ
 from emotive.ik.foot_lock import initial_lock_state, leg_rig, lock_feet
 from emotive.models.gait.affect import gait_affective
+from emotive.models.gait.agent_inputs import check_pace, to_model_schedule
 from emotive.models.gait.agents import AgentBatch, empty_batch, joined, kept
 from emotive.models.gait.controls import MIN_TURN_FACTOR
 from emotive.models.gait.model import GaitModel
@@ -93,10 +94,6 @@ MAX_SPEED = 8.0
 MIN_TARGET_DISTANCE = 0.05
 #: A "go to" path leaves along the agent's heading for up to this many metres.
 TARGET_LEAD = 0.75
-#: Allowed per-agent pace factors (times the emotion's walking speed).
-PACE_RANGE = (0.5, 1.5)
-
-EmotionLike = Emotion | EmotionSchedule | str | Mapping[str, float] | np.ndarray
 
 
 class GaitFrame(NamedTuple):
@@ -145,48 +142,6 @@ def torch_threads(count: int) -> Iterator[None]:
     finally:
         if before != count:
             torch.set_num_threads(before)
-
-
-def check_pace(pace: float) -> float:
-    """``pace`` as a float if it lies in :data:`PACE_RANGE`.
-
-    Raises:
-        ValueError: outside the range or not finite.
-    """
-    lo, hi = PACE_RANGE
-    if not (math.isfinite(pace) and lo <= pace <= hi):
-        raise ValueError(f"pace must be between {lo:g} and {hi:g} times the emotion's walking "
-                         f"speed, got {pace!r}")
-    return float(pace)
-
-
-def point_labels(labels: Sequence[str]) -> tuple[str, ...] | None:
-    """The labels a valence/arousal point blends for a network with ``labels``.
-
-    The four emotions it knows (happy, sad, angry, neutral), not the dataset-2 styles; ``None``
-    (all labels) for a network that knows none of them.
-    """
-    return tuple(label for label in DEFAULT_LABELS if label in labels) or None
-
-
-def to_model_schedule(emotion: EmotionLike, labels: Sequence[str]) -> EmotionSchedule:
-    """An emotion or schedule over the model's ``labels``.
-
-    Accepts what :func:`~emotive.data.emotion.coerce_emotion` accepts: an :class:`Emotion`,
-    an :class:`EmotionSchedule`, text such as ``"happy=0.7,neutral=0.3"`` or
-    ``"valence=0.5,arousal=0.2"``, a mapping, ``(C,)`` weights over ``labels``, keyframes or a
-    JSON file of them. Labels of the input that the model lacks must weigh zero.
-
-    A valence/arousal point blends the four emotions only (:func:`point_labels`), not
-    the dataset-2 styles the network also knows: styles such as ``chimpira`` or ``active``
-    sit near the emotions on the circumplex, and blending them in made angry's own point read
-    as happy to the classifier (P(angry) 0.06 against 0.89 for the label).
-
-    Raises:
-        EmotionError: unknown names, negative, NaN or all-zero weights, or weight on a label
-            the model was not trained with.
-    """
-    return coerce_emotion(emotion, labels, points_over=point_labels(labels))
 
 
 class GaitGenerator:
@@ -283,7 +238,8 @@ class GaitGenerator:
 
         Raises:
             EmotionError: a bad emotion. PathError: not a path. RigError: a primer on another
-            rig or too short. ValueError: a pace outside :data:`PACE_RANGE`.
+            rig or too short. ValueError: a pace outside
+            :data:`~emotive.models.gait.agent_inputs.PACE_RANGE`.
         """
         return self.add_agents([path], [emotion], primer=primer, starts=[start],
                                seeds=None if seed is None else [seed], paces=[pace])[0]
@@ -412,7 +368,8 @@ class GaitGenerator:
         """Walk an agent faster or slower than its emotion does, by ``pace`` (0.5-1.5).
 
         Raises:
-            KeyError: unknown agent. ValueError: ``pace`` outside :data:`PACE_RANGE`.
+            KeyError: unknown agent. ValueError: ``pace`` outside
+            :data:`~emotive.models.gait.agent_inputs.PACE_RANGE`.
         """
         k = self._index(agent)
         self._batch.pace[k] = check_pace(pace)

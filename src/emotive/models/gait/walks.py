@@ -21,9 +21,10 @@ from rich.progress import track
 
 from emotive.core.motion import Motion
 from emotive.core.roles import resolve_roles
+from emotive.data.emotion import EmotionLike
 from emotive.features.contacts import foot_contacts
 from emotive.ik.api import pin_feet
-from emotive.models.gait.generate import EmotionLike, GaitGenerator
+from emotive.models.gait.generate import GaitGenerator
 from emotive.models.gait.model import GaitModel
 from emotive.paths import GroundPath
 
