@@ -20,7 +20,14 @@ from collections import deque
 import numpy as np
 import torch
 
-from bench.common import comparison, median_seconds, print_rows, resident_mb, unpinned_threads
+from bench.common import (
+    DEFAULT_THREADS,
+    comparison,
+    median_seconds,
+    print_rows,
+    resident_mb,
+    unpinned_threads,
+)
 from emotive.core.roles import JointRoles, resolve_roles
 from emotive.eval.feet import foot_skating
 from emotive.io.bvh import read_bvh
@@ -66,7 +73,9 @@ def crowd_rows(model: GaitModel, agents: int = 1000, default_threads: int | None
     """
     shared = _rate(_generator(model, agents), 10)
     own = _rate(_generator(model, agents, own_paths=True), 10)
-    threads = default_threads or torch.get_num_threads()
+    # Torch's own default, read when the benchmarks started: inside a pinned block
+    # torch.get_num_threads() is the pinned count.
+    threads = default_threads or DEFAULT_THREADS
     with unpinned_threads():
         default = _rate(_generator(model, 100, threads=max(threads, 1)), 20)
     ours = _rate(_generator(model, 100), 20)

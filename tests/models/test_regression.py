@@ -16,10 +16,14 @@ import make_golden as golden
 import pytest
 
 RECORDED = json.loads(golden.GOLDEN.read_text())
-#: Relative tolerance of every number, and absolute tolerance for those near zero.
-RTOL, ATOL = 1e-5, 1e-6
+#: Relative tolerance of every number, and absolute tolerance for those near zero. Not tighter:
+#: the same code gives other last digits on another CPU (2026-12-02, one machine to the next:
+#: up to 1.5e-4 relative on mar_happy's positions, 1.2e-4 on fcrbm_high's end point and
+#: 3.3e-5 absolute on a mean rotation component near zero), while a change in what a model
+#: makes moves these summaries by far more.
+RTOL, ATOL = 1e-3, 1e-4
 
-#: CLI runs in the unified spelling, each to match the hash of a recorded run.
+#: CLI runs in the unified spelling, each to write the same file as its recorded spelling.
 CLI_NEW: dict[str, list[str]] = {
     "cli_gait_sad": ["generate", "--model", "gait", "--emotion", "sad", "--seconds", "4",
                      "--path", "circle", "--seed", "0"],
@@ -63,4 +67,5 @@ def test_model_output_is_unchanged(name, request):
 
 @pytest.mark.parametrize("name", sorted(CLI_NEW))
 def test_unified_cli_writes_the_recorded_bvh(name, tmp_path):
-    assert golden.cli_sha256(CLI_NEW[name], tmp_path) == RECORDED["cli_sha256"][name]
+    recorded = golden.cli_sha256(golden.CLI_RECORDED[name], tmp_path / "recorded")
+    assert golden.cli_sha256(CLI_NEW[name], tmp_path / "new") == recorded

@@ -164,18 +164,25 @@ class PathBank:
         return np.where(self._closed[slots], np.mod(s, length), np.clip(s, 0.0, length))
 
     def position(self, slots: np.ndarray, s: np.ndarray) -> np.ndarray:
-        """``(B, 2)`` ``(x, z)`` of slot ``slots[i]``'s path at arc length ``s[i]``."""
+        """``(..., B, 2)`` ``(x, z)`` of slot ``slots[i]``'s path at arc length ``s[..., i]``.
+
+        ``s`` may stack several queries per slot on leading axes: all are answered by one
+        search.
+        """
         self._tables()
         slots = np.asarray(slots, dtype=np.int64)
         key = self._wrap(slots, np.asarray(s, dtype=np.float64)) + self._base[slots]
         i = np.searchsorted(self._key[:self._used], key, side="right") - 1
         i = np.clip(i, self._first[slots], self._last[slots] - 1)
         k0, k1 = self._key[i], self._key[i + 1]
-        t = np.clip((key - k0) / np.maximum(k1 - k0, 1e-300), 0.0, 1.0)[:, None]
+        t = np.clip((key - k0) / np.maximum(k1 - k0, 1e-300), 0.0, 1.0)[..., None]
         return self._pts[i] * (1.0 - t) + self._pts[i + 1] * t
 
     def heading(self, slots: np.ndarray, s: np.ndarray) -> np.ndarray:
-        """``(B,)`` yaw of the tangent (0 faces +Z), as :meth:`GroundPath.heading`."""
+        """``(..., B)`` yaw of the tangent (0 faces +Z), as :meth:`GroundPath.heading`.
+
+        ``s`` is ``(..., B)`` as in :meth:`position`.
+        """
         self._tables()
         slots = np.asarray(slots, dtype=np.int64)
         s = self._wrap(slots, np.asarray(s, dtype=np.float64))
@@ -183,9 +190,10 @@ class PathBank:
         h = np.minimum(SAMPLE_SPACING, 0.25 * length)
         lo = np.where(closed, s - h, np.maximum(s - h, 0.0))
         hi = np.where(closed, s + h, np.minimum(s + h, length))
-        d = self.position(slots, hi) - self.position(slots, lo)
+        ends = self.position(slots, np.stack((hi, lo)))
+        d = ends[0] - ends[1]
         d = d / np.maximum(np.linalg.norm(d, axis=-1, keepdims=True), 1e-12)
-        return np.arctan2(d[:, 0], d[:, 1])
+        return np.arctan2(d[..., 0], d[..., 1])
 
     def curvature(self, slots: np.ndarray, s: np.ndarray,
                   window: float = CURVATURE_WINDOW) -> np.ndarray:
@@ -195,8 +203,7 @@ class PathBank:
         s = np.asarray(s, dtype=np.float64)
         length, closed = self._length[slots], self._closed[slots]
         h = 0.5 * np.minimum(window, 0.5 * length)
-        a = self.heading(slots, s - h)
-        b = self.heading(slots, s + h)
+        a, b = self.heading(slots, np.stack((s - h, s + h)))
         span = np.where(closed, 2 * h, self._wrap(slots, s + h) - self._wrap(slots, s - h))
         turn = np.angle(np.exp(1j * (b - a)))
         return np.where(span > 1e-9, turn / np.maximum(span, 1e-9), 0.0)
