@@ -257,15 +257,15 @@ def _yaw_corrections(state: LockState, yaw: np.ndarray, contact: np.ndarray, fad
 
 
 def _reachable(hip: np.ndarray, target: np.ndarray, reach: np.ndarray) -> np.ndarray:
-    """``(B, 3)`` targets beyond a leg's reach raised until the leg reaches them.
+    """``(..., 3)`` targets beyond a leg's reach raised until the leg reaches them.
 
     The horizontal position is what the lock holds, so an ankle the straight leg cannot
     reach (at heel strike and toe-off) is lifted rather than left sliding.
     """
-    flat = np.linalg.norm((target - hip)[:, [0, 2]], axis=-1)
-    lowest = hip[:, 1] - np.sqrt(np.maximum(reach**2 - flat**2, 0.0))
+    flat = np.linalg.norm((target - hip)[..., [0, 2]], axis=-1)
+    lowest = hip[..., 1] - np.sqrt(np.maximum(reach**2 - flat**2, 0.0))
     out = target.copy()
-    out[:, 1] = np.maximum(target[:, 1], lowest)
+    out[..., 1] = np.maximum(target[..., 1], lowest)
     return out
 
 
@@ -274,40 +274,40 @@ def _two_bone(rig: LegRig, rotations: np.ndarray, points: np.ndarray, shift: np.
     """The rotations and points with each ankle moved and each foot turned, hips fixed.
 
     Each ankle moves by ``shift`` ``(B, 2, 3)`` and each foot turns by ``yaw`` ``(B, 2)``
-    about the vertical through its ankle.
+    about the vertical through its ankle. Both legs are solved at once: every array below
+    carries a leg axis after the agents' (``(B, 2, ...)``).
     """
     parents_world = _world_rotations(rotations, rig.parents, rig.chain[:, 3])
     rotations, points = rotations.copy(), points.copy()
+    up, hip, knee, ankle = rig.chain.T
+    h, k, a = points[:, hip], points[:, knee], points[:, ankle]
+    la = np.linalg.norm(k - h, axis=-1)
+    lb = np.linalg.norm(a - k, axis=-1)
+    target = _reachable(h, a + shift, la + lb - 1e-6)
+    reach = target - h
+    d = np.clip(np.linalg.norm(reach, axis=-1), np.abs(la - lb) + 1e-6, la + lb - 1e-6)
+    u = reach / np.maximum(np.linalg.norm(reach, axis=-1, keepdims=True), 1e-12)
+    side = (k - h) - ((k - h) * u).sum(-1, keepdims=True) * u
+    v = side / np.maximum(np.linalg.norm(side, axis=-1, keepdims=True), 1e-12)
+    along = (la**2 - lb**2 + d**2) / (2 * d)
+    k_new = h + along[..., None] * u + np.sqrt(np.maximum(la**2 - along**2, 0))[..., None] * v
+    a_new = h + d[..., None] * u
+    g_up, g_hip = parents_world[:, up], parents_world[:, hip]
+    g_knee, g_ankle = parents_world[:, knee], parents_world[:, ankle]
+    r1 = _between(k - h, k_new - h)
+    g_hip2 = qmul(r1, g_hip)
+    r2 = _between(qapply(r1, a - k), a_new - k_new)
+    g_knee2 = qmul(r2, qmul(r1, g_knee))
+    half = 0.5 * yaw
+    turn = np.stack((np.cos(half), np.zeros_like(half), np.sin(half), np.zeros_like(half)), -1)
+    rotations[:, hip] = qnormalize(qmul(_conj(g_up), g_hip2))
+    rotations[:, knee] = qnormalize(qmul(_conj(g_hip2), g_knee2))
+    rotations[:, ankle] = qnormalize(qmul(_conj(g_knee2), qmul(turn, g_ankle)))
+    points[:, knee] = k_new
     for leg in range(2):
-        up, hip, knee, ankle = rig.chain[leg]
-        h, k, a = points[:, hip], points[:, knee], points[:, ankle]
-        la = np.linalg.norm(k - h, axis=-1)
-        lb = np.linalg.norm(a - k, axis=-1)
-        target = _reachable(h, a + shift[:, leg], la + lb - 1e-6)
-        reach = target - h
-        d = np.clip(np.linalg.norm(reach, axis=-1), np.abs(la - lb) + 1e-6, la + lb - 1e-6)
-        u = reach / np.maximum(np.linalg.norm(reach, axis=-1, keepdims=True), 1e-12)
-        side = (k - h) - ((k - h) * u).sum(-1, keepdims=True) * u
-        v = side / np.maximum(np.linalg.norm(side, axis=-1, keepdims=True), 1e-12)
-        along = (la**2 - lb**2 + d**2) / (2 * d)
-        k_new = h + along[:, None] * u + np.sqrt(np.maximum(la**2 - along**2, 0))[:, None] * v
-        a_new = h + d[:, None] * u
-        g_up, g_hip = parents_world[:, up], parents_world[:, hip]
-        g_knee, g_ankle = parents_world[:, knee], parents_world[:, ankle]
-        r1 = _between(k - h, k_new - h)
-        g_hip2 = qmul(r1, g_hip)
-        r2 = _between(qapply(r1, a - k), a_new - k_new)
-        g_knee2 = qmul(r2, qmul(r1, g_knee))
-        half = 0.5 * yaw[:, leg]
-        turn = np.stack((np.cos(half), np.zeros_like(half), np.sin(half), np.zeros_like(half)),
-                        -1)
-        rotations[:, hip] = qnormalize(qmul(_conj(g_up), g_hip2))
-        rotations[:, knee] = qnormalize(qmul(_conj(g_hip2), g_knee2))
-        rotations[:, ankle] = qnormalize(qmul(_conj(g_knee2), qmul(turn, g_ankle)))
-        points[:, knee] = k_new
         below = rig.below[leg]
-        moved = points[:, below] - a[:, None]
-        points[:, below] = a_new[:, None] + qapply(turn[:, None], moved)
+        moved = points[:, below] - a[:, leg, None]
+        points[:, below] = a_new[:, leg, None] + qapply(turn[:, leg, None], moved)
     return rotations, points
 
 
