@@ -269,7 +269,13 @@ def _table1(ctx: Context) -> dict:
 
 
 def _speed(ctx: Context) -> dict:
-    """Agent-frames per second of the generator's ``generate`` (one agent at a time)."""
+    """Agent-frames per second of the generator's ``generate``, one request at a time.
+
+    Each row's ``agents`` requests are made one after the other, as an application asking for
+    one character's clip at a time makes them, so the rate does not grow with the count; a
+    crowd stepped together (:class:`~emotive.models.gait.generate.GaitGenerator`) is measured
+    by ``make bench``.
+    """
     generator = ctx.subject.generator
     assert generator is not None
     rows = []

@@ -238,7 +238,9 @@ def _affect_lines(result: dict) -> list[str]:
 
 def _speed_lines(result: dict) -> list[str]:
     """The body of the ``speed`` section."""
-    out = ["| agents | frames | seconds | agent-frames/s |", "|---:|---:|---:|---:|"]
+    out = ["Requests made one at a time through `generate` (crowds stepped together: "
+           "`make bench`).", "", "| requests | frames | seconds | agent-frames/s |",
+           "|---:|---:|---:|---:|"]
     for r in result["rows"]:
         out.append(f"| {r['agents']} | {r['frames']} | {_fmt(r['seconds'])} | "
                    f"{_fmt(r['agent_frames_per_second'], 0)} |")
