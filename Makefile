@@ -1,5 +1,6 @@
 # The README's commands: `make demo` (main job) and `make test` (whole suite); `make bench`,
-# `make docs` (the documentation site, built strictly into site/).
+# `make docs` (the documentation site, built strictly into site/), `make test-stress` (the
+# suite with two CPU hogs beside it, see .ci/stress).
 PYTHON ?= $(shell command -v python3.11 || command -v python3)
 VENV := .venv
 BIN := $(VENV)/bin
@@ -8,7 +9,7 @@ THREEJS := tests/io/threejs
 GLTFJS := tests/io/gltf_js
 CLIP := dataset-1_walk_happy_001.bvh
 
-.PHONY: install test lint demo bench docs clean
+.PHONY: install test test-stress lint demo bench docs clean
 
 # torch is pinned here, not in pyproject.toml: 2.13.0 is the CPU wheel on these machines, and a
 # looser range would pull a multi-GB CUDA build. See the README for a GPU build.
@@ -35,6 +36,10 @@ lint: install
 test: install lint $(THREEJS)/node_modules/.package-lock.json \
 		$(GLTFJS)/node_modules/.package-lock.json
 	$(BIN)/python -m pytest
+
+# The suite as on a shared 2-core machine with two other jobs running.
+test-stress:
+	bash .ci/stress $(MAKE) test
 
 demo: install
 	mkdir -p demo_out

@@ -3,6 +3,11 @@
 :class:`WsClient` reads in the background (so the server never sees it stall unless a test
 asks it to stop reading), decodes every frame with :func:`emotive.serve.frames.decode_frame`
 and matches replies to requests by ``ref``.
+
+Waits are on what the server makes: frames (counted, or by their scene time, frame number /
+fps) and its frame counter (``/api/stats``). Scene time runs behind wall time on a busy
+machine (the server skips ticks it cannot make in time), so a budget in scene time or frames
+holds whatever the machine's speed; wall time only bounds a hang.
 """
 
 from __future__ import annotations
@@ -13,12 +18,19 @@ import json
 import time
 from typing import Any
 
+import httpx
 import websockets
 
 from emotive.serve.frames import Frame, decode_frame
 
-#: Seconds a test waits for any one reply.
-REPLY_TIMEOUT = 15.0
+#: Wall seconds a test waits for any one reply: a hang guard.
+REPLY_TIMEOUT = 120.0
+#: Wall seconds without a new frame (or a new frame count of the server) that count as a hang.
+STALL_SECONDS = 120.0
+#: Wall seconds any one wait on the server may take in all: a hang guard, not a budget.
+HANG_SECONDS = 300.0
+#: Wall seconds between two polls of ``/api/stats``.
+POLL_SECONDS = 0.1
 
 
 def ws_url(base: str, token: str | None = None) -> str:
@@ -104,14 +116,82 @@ class WsClient:
         await self.wait_for(lambda: all(self.reply(r) is not None for r in refs))
         return [self.reply(r) for r in refs]
 
-    async def frames_after(self, count: int, timeout: float = REPLY_TIMEOUT) -> list[Frame]:
-        """Wait for ``count`` more frames and return them."""
+    async def frames_after(self, count: int) -> list[Frame]:
+        """Wait for ``count`` more frames and return them (a hang: no frame for a long time)."""
         start = len(self.frames)
-        await self.wait_for(lambda: len(self.frames) >= start + count, timeout)
+        await self._frames_until(lambda: len(self.frames) >= start + count,
+                                 lambda: f"{len(self.frames) - start} of {count} frames came")
         return [f for _, f in self.frames[start:start + count]]
+
+    async def scene_after(self, seconds: float) -> list[Frame]:
+        """Wait until the frames' scene time is ``seconds`` past the latest frame's.
+
+        Returns the frames from that latest one (or the first to come) on.
+        """
+        if not self.frames:
+            await self.frames_after(1)
+        start = len(self.frames) - 1
+        t0 = self.frames[start][1].time
+        # Frame times are number / fps: allow for the rounding of that division.
+        await self._frames_until(lambda: self.frames[-1][1].time >= t0 + seconds - 1e-6,
+                                 lambda: f"{self.frames[-1][1].time - t0:.2f} of {seconds} "
+                                         "scene s came")
+        return [f for _, f in self.frames[start:]]
+
+    async def _frames_until(self, done: Any, told: Any) -> None:
+        """Wait until ``done()``; fail if the connection closes or frames stop coming."""
+        while not done():
+            if self.ws.close_code is not None:
+                raise ConnectionError(f"the connection closed ({self.ws.close_code}): {told()}")
+            seen = len(self.frames)
+            try:
+                await self.wait_for(lambda s=seen: done() or len(self.frames) > s
+                                    or self.ws.close_code is not None, STALL_SECONDS)
+            except TimeoutError:
+                raise TimeoutError(f"no progress: no frame for {STALL_SECONDS:.0f} s; "
+                                   f"{told()}") from None
 
     async def add_agents(self, count: int, **fields: Any) -> list[int]:
         """Add ``count`` agents (one message each); returns their ids."""
         replies = await self.requests([{"type": "add_agent", **fields}] * count)
         assert all(r["type"] == "agent" for r in replies), replies
         return [r["id"] for r in replies]
+
+
+async def server_stats(base: str) -> dict[str, Any]:
+    """``GET /api/stats`` of a server without a token (off the event loop's thread)."""
+    async with httpx.AsyncClient(timeout=REPLY_TIMEOUT) as http:
+        reply = await http.get(f"{base}/api/stats")
+    reply.raise_for_status()
+    return reply.json()
+
+
+async def until_server(base: str, check: Any, what: Any, frames: int | None = None) -> Any:
+    """Poll ``check(stats)`` (``/api/stats``) until it returns something truthy.
+
+    Fails (AssertionError naming ``what``, a string or a callable giving one) once the server
+    made ``frames`` frames since the first poll (a budget in scene time: ``frames / fps``
+    scene seconds) without it. With ``frames=None`` there is no budget (for what the server
+    does on its own wall clock, such as dropping a stalled client). Either way it fails when
+    the server's frame counter does not move for ``STALL_SECONDS``, or after
+    ``HANG_SECONDS`` in all.
+    """
+    told = what if callable(what) else lambda: what
+    first = await server_stats(base)
+    start = moved = time.monotonic()
+    last = first["frames"]
+    while True:
+        stats = await server_stats(base)
+        result = check(stats)
+        if result:
+            return result
+        made = stats["frames"] - first["frames"]
+        now = time.monotonic()
+        assert frames is None or made < frames, f"{told()}: after {made} frames of the server"
+        if stats["frames"] != last:
+            last, moved = stats["frames"], now
+        assert now - moved < STALL_SECONDS, (
+            f"no progress: the server made no frame for {STALL_SECONDS:.0f} s; {told()}")
+        assert now - start < HANG_SECONDS, (
+            f"no progress within {HANG_SECONDS:.0f} s ({made} frames made); {told()}")
+        await asyncio.sleep(POLL_SECONDS)

@@ -19,13 +19,14 @@ from emotive.errors import DataError
 #: A child process: register the data set it is given, wait for the start signal, then ask for
 #: the data set folder and print what it holds.
 CHILD = """
-import json, sys, time
+import json, os, sys, time
 from pathlib import Path
 from emotive.data import registry, store
 from emotive.data.registry import DatasetInfo
 spec, go = json.loads(sys.argv[1]), Path(sys.argv[2])
 fields = {k: tuple(v) if isinstance(v, list) else v for k, v in spec.items()}
 registry.REGISTRY[spec["name"]] = DatasetInfo(**fields)
+(go.parent / f"{go.name}.ready.{os.getpid()}").touch()
 deadline = time.monotonic() + 60
 while not go.exists() and time.monotonic() < deadline:
     time.sleep(0.002)
@@ -45,7 +46,12 @@ def unpack_at_once(info: registry.DatasetInfo, shared: Path, home: Path, tmp: Pa
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         for _ in range(n)
     ]
-    time.sleep(1.0)  # let every child import and reach the start line
+    # Every child imported and at the start line (each says so with a file), however busy the
+    # machine; the limit only guards against a hang.
+    deadline = time.monotonic() + 300
+    while (len(list(tmp.glob(f"{go.name}.ready.*"))) < n and time.monotonic() < deadline
+           and all(proc.poll() is None for proc in procs)):
+        time.sleep(0.05)
     go.touch()
     results = []
     for proc in procs:

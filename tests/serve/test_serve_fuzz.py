@@ -10,7 +10,7 @@ import httpx
 import websockets
 
 from emotive.serve.testing import running_server
-from serve_client import WsClient, ws_url
+from serve_client import REPLY_TIMEOUT, WsClient, ws_url
 
 MESSAGES = 1000
 TYPES = ["add_agent", "set_emotion", "set_path", "set_target", "set_pace", "remove_agent",
@@ -63,8 +63,8 @@ def test_fuzzed_messages_and_abrupt_disconnects_leave_it_serving():
                         await client.send(text)
                     await client.wait_for(lambda k=k: len(client.replies) >= k + 50)
                 for _ in range(20):
-                    rude = await asyncio.wait_for(
-                        websockets.connect(ws_url(url), max_size=None), 10)
+                    rude = await websockets.connect(ws_url(url), max_size=None,
+                                                    open_timeout=REPLY_TIMEOUT)
                     await rude.send('{"type": "add_agent", "path": "circle"}')
                     if rng.random() < 0.5:
                         await rude.send('{"type": "add_agent", "emo')

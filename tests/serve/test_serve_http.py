@@ -12,7 +12,7 @@ import websockets
 from emotive.serve.errors import ServeError
 from emotive.serve.settings import ServeSettings, is_loopback
 from emotive.serve.testing import running_server
-from serve_client import WsClient, ws_url
+from serve_client import REPLY_TIMEOUT, WsClient, ws_url
 
 TOKEN = "s3cret-token"
 
@@ -98,7 +98,7 @@ def test_token_guards_the_api_and_the_websocket():
         assert ok.status_code == 200
 
         async def refused(url: str) -> int:
-            async with websockets.connect(url) as ws:
+            async with websockets.connect(url, open_timeout=REPLY_TIMEOUT) as ws:
                 with pytest.raises(websockets.ConnectionClosed) as closed:
                     await ws.recv()
             return closed.value.rcvd.code
@@ -132,9 +132,10 @@ def test_other_sites_are_refused(url):
     assert httpx.get(f"{url}/api/health", headers={"Host": "localhost"}).status_code == 200
 
     async def closed_with(origin: str) -> int | None:
-        async with websockets.connect(ws_url(url), origin=origin) as ws:
+        async with websockets.connect(ws_url(url), origin=origin,
+                                      open_timeout=REPLY_TIMEOUT) as ws:
             try:
-                await asyncio.wait_for(ws.recv(), 5)
+                await asyncio.wait_for(ws.recv(), REPLY_TIMEOUT)
             except websockets.ConnectionClosed as exc:
                 return exc.rcvd.code
         return None

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import asyncio
-import time
 
 import httpx
 import numpy as np
@@ -11,7 +10,10 @@ import pygltflib
 
 from emotive.io.bvh import read_bvh
 from emotive.serve.testing import running_server
-from serve_client import WsClient
+from serve_client import WsClient, until_server
+
+#: Frames of the server (5 scene seconds) within which a leaving client's recording stops.
+LEAVE_FRAMES = 150
 
 
 def test_record_and_download(tmp_path):
@@ -75,8 +77,13 @@ def test_limits_of_recordings():
         assert twice["type"] == "error" and "stop_recording" in twice["message"]
         assert notice["type"] == "error" and f"recording {started['id']}" in notice["message"]
         assert stopped["frames"] == 15
-        # A client that leaves stops its recording, which stays downloadable.
-        deadline = time.monotonic() + 10
-        while (answer := httpx.get(f"{url}/api/recordings/{left['id']}")).status_code != 200:
-            assert time.monotonic() < deadline, answer.json()
-            time.sleep(0.1)
+        # A client that leaves stops its recording (on a later tick), which stays downloadable.
+        answers = []
+
+        def downloadable(_: dict) -> bool:
+            answers.append(httpx.get(f"{url}/api/recordings/{left['id']}"))
+            return answers[-1].status_code == 200
+
+        asyncio.run(until_server(url, downloadable, lambda: "the recording of a client that "
+                                 f"left is not downloadable: {answers[-1].json()}",
+                                 frames=LEAVE_FRAMES))

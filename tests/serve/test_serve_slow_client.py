@@ -3,37 +3,43 @@
 from __future__ import annotations
 
 import asyncio
-import time
 
 import httpx
 import websockets
 
 from emotive.serve.testing import running_server
-from serve_client import WsClient, ws_url
+from serve_client import REPLY_TIMEOUT, WsClient, server_stats, until_server, ws_url
+
+#: Scene seconds the reading client is watched while the other stalls.
+SECONDS = 3.0
 
 
 def test_a_stalled_client_does_not_slow_another():
     with running_server(stall_seconds=2.0) as url:
+        fps = httpx.get(f"{url}/api/skeleton").json()["fps"]
 
         async def run():
             async with WsClient(url) as fast:
                 await fast.add_agents(100, path="circle")
-                stalled = await websockets.connect(ws_url(url), max_size=None)
+                stalled = await websockets.connect(ws_url(url), max_size=None,
+                                                   open_timeout=REPLY_TIMEOUT)
                 stalled.transport.pause_reading()
                 await fast.frames_after(5)
-                before = httpx.get(f"{url}/api/stats").json()
-                start = len(fast.frames)
-                await asyncio.sleep(3.0)
-                stats = httpx.get(f"{url}/api/stats").json()
-                got, made = len(fast.frames) - start, stats["frames"] - before["frames"]
-                deadline = time.monotonic() + 20
-                while (httpx.get(f"{url}/api/stats").json()["clients"] > 1
-                       and time.monotonic() < deadline):
-                    await asyncio.sleep(0.2)
-                after = httpx.get(f"{url}/api/stats").json()
+                before = await server_stats(url)
+                # The scene makes SECONDS of frames (the server's frame counter).
+                now = await until_server(
+                    url, lambda s: s if s["frames"] >= before["frames"] + SECONDS * fps
+                    else None, "the scene did not go on")
+                window = range(before["frames"], now["frames"])
+                # The reading client gets the last of them (or a later one), then is counted.
+                await fast.wait_for(lambda: fast.frames[-1][1].number >= window[-1])
+                got = sum(f.number in window for _, f in fast.frames)
+                # The server drops the stalled client after stall_seconds of its own wall time.
+                after = await until_server(url, lambda s: s["clients"] == 1 and s,
+                                           "the stalled client was not disconnected")
                 more = await fast.frames_after(10)
                 stalled.transport.abort()
-                return got, made, before, after, more
+                return got, len(window), before, after, more
 
         got, made, before, after, more = asyncio.run(run())
     # The reading client gets every frame the scene made while the other stalled.

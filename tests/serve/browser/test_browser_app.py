@@ -5,6 +5,11 @@ WebGL on SwiftShader. One server and one page for the module: the page opens ``/
 (four agents walking) and the tests use it in order, reading the app through its read-only
 debug hook ``window.emotive`` and the server through ``/api/agents``.
 
+Waits are on the app's state, with budgets in scene seconds (the server's scene time, frame
+number / fps, of the latest frame the page got) and in frames the page rendered: on a busy
+machine the server skips ticks and software WebGL renders a few frames a second, so both run
+behind wall time. Wall time only bounds a hang.
+
 Chromium or Playwright missing: the tests skip, naming what to install; CI sets
 ``EMOTIVE_REQUIRE_TOOLS=1``, which turns a skip into a failure.
 """
@@ -15,6 +20,7 @@ import io
 import math
 import shutil
 import struct
+import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from typing import Any
@@ -40,6 +46,16 @@ DEMO_AGENTS = 4
 MAX_AGENTS = DEMO_AGENTS + 1
 #: The token of the test server.
 TOKEN = "browser-test-token"
+#: Wall seconds in which neither scene time nor rendered frames advance that count as a hang;
+#: also Playwright's timeout of each action.
+STALL_SECONDS = 120.0
+#: Wall seconds any one wait may take in all (a hang guard, not a budget), and the page's
+#: start.
+HANG_SECONDS = 300.0
+#: Wall seconds an HTTP request to the test server may take (a hang guard).
+REQUEST_SECONDS = 60.0
+#: Milliseconds between two polls of a wait.
+POLL_MS = 200
 
 
 @pytest.fixture(scope="module")
@@ -53,9 +69,31 @@ def browser() -> Iterator[Any]:
     exe = shutil.which("chromium") or shutil.which("chromium-browser")
     require_tool(exe is not None, "Chromium is not installed (apt-get install chromium)")
     with sync_playwright() as pw:
-        chromium = pw.chromium.launch(executable_path=exe, args=list(CHROMIUM_FLAGS))
+        chromium = pw.chromium.launch(executable_path=exe, args=list(CHROMIUM_FLAGS),
+                                      timeout=HANG_SECONDS * 1000)
         yield chromium
         chromium.close()
+
+
+def _new_page(browser: Any) -> Any:
+    """A page of the test size whose actions wait up to the hang guard."""
+    page = browser.new_page(viewport=VIEWPORT)
+    page.set_default_timeout(STALL_SECONDS * 1000)
+    return page
+
+
+@dataclass
+class Progress:
+    """How far the app got during a wait."""
+
+    scene: float  #: scene seconds between the frames the page had at the start and now
+    frames: int  #: frames the page rendered
+    wall: float  #: wall seconds
+    fps: float  #: the page's renderFps
+
+    def __str__(self) -> str:
+        return (f"after {self.scene:.1f} scene s, {self.frames} frames rendered, "
+                f"{self.wall:.1f} wall s (renderFps {self.fps:.1f})")
 
 
 @dataclass
@@ -73,21 +111,57 @@ class App:
 
     def agents(self) -> dict[int, dict[str, Any]]:
         """The server's agents by id (``GET /api/agents``)."""
-        reply = httpx.get(f"{self.base}/api/agents", timeout=10,
+        reply = httpx.get(f"{self.base}/api/agents", timeout=REQUEST_SECONDS,
                           headers={"Authorization": f"Bearer {TOKEN}"})
         reply.raise_for_status()
         return {a["id"]: a for a in reply.json()["agents"]}
 
-    def until(self, check: Callable[[], Any], seconds: float, what: str) -> Any:
-        """Poll ``check`` (letting the page run) until it returns something truthy."""
-        waited = 0.0
-        while waited < seconds:
+    def clock(self) -> tuple[float, int, float]:
+        """The scene time of the page's latest frame, its frames rendered and its renderFps."""
+        return tuple(self.page.evaluate(
+            "() => { const e = window.emotive; "
+            "return [e.lastFrame ? e.lastFrame.time : 0, e.framesRendered, e.renderFps]; }"))
+
+    def within(self, check: Callable[[], Any], scene: float = 0.0,
+               frames: int = 0) -> tuple[Any, Progress]:
+        """Poll ``check`` (letting the page run) until it returns something truthy.
+
+        Gives up once the budget is spent: ``scene`` scene seconds passed and ``frames``
+        frames were rendered, both. Returns ``check``'s last result and the progress; fails
+        on a hang (no progress for ``STALL_SECONDS``, or ``HANG_SECONDS`` in all).
+        """
+        t0, r0, _ = self.clock()
+        start = moved = time.monotonic()
+        last = (t0, r0)
+        while True:
+            # The clock is read before the check: a budget spent means the check saw it.
+            t, r, fps = self.clock()
+            now = time.monotonic()
+            progress = Progress(t - t0, r - r0, now - start, fps)
             result = check()
-            if result:
-                return result
-            self.page.wait_for_timeout(200)
-            waited += 0.2
-        pytest.fail(f"after {seconds} s: {what}")
+            if result or (progress.scene >= scene and progress.frames >= frames):
+                return result, progress
+            if (t, r) != last:
+                last, moved = (t, r), now
+            if now - moved > STALL_SECONDS:
+                pytest.fail(f"no progress: neither scene time nor rendered frames advanced "
+                            f"for {STALL_SECONDS:.0f} s ({progress})")
+            if now - start > HANG_SECONDS:
+                pytest.fail(f"no progress within {HANG_SECONDS:.0f} s ({progress})")
+            self.page.wait_for_timeout(POLL_MS)
+
+    def until(self, check: Callable[[], Any], what: str | Callable[[], str],
+              scene: float = 0.0, frames: int = 0) -> Any:
+        """``check``'s first truthy result within the budget of :meth:`within`, or a failure
+        saying ``what`` (a string or a callable giving one) and how far the app got."""
+        result, progress = self.within(check, scene, frames)
+        if not result:
+            pytest.fail(f"{what() if callable(what) else what} ({progress})")
+        return result
+
+    def run_for(self, scene: float = 0.0, frames: int = 0) -> Progress:
+        """Let the app run for ``scene`` scene seconds and ``frames`` rendered frames."""
+        return self.within(lambda: False, scene, frames)[1]
 
     def view(self) -> np.ndarray:
         """A screenshot of the 3-D view as an ``(H, W, 3)`` array."""
@@ -108,7 +182,7 @@ def app(browser) -> Iterator[App]:
     The token is given in the page's address only: every call the app makes must pass it on.
     """
     with running_server(token=TOKEN, max_agents=MAX_AGENTS) as base:
-        page = browser.new_page(viewport=VIEWPORT)
+        page = _new_page(browser)
         app = App(page, base)
         page.on("console", lambda m: app.problems.append(f"console {m.type}: {m.text}")
                 if m.type == "error" else None)
@@ -117,7 +191,7 @@ def app(browser) -> Iterator[App]:
         page.goto(f"{base}/?demo=1&token={TOKEN}")
         page.wait_for_function(
             f"() => window.emotive?.ready && window.emotive.agents().length >= {DEMO_AGENTS}",
-            timeout=60_000)
+            polling=POLL_MS, timeout=HANG_SECONDS * 1000)
         yield app
         page.close()
 
@@ -133,7 +207,9 @@ def _distance_to_polyline(points: np.ndarray, line: np.ndarray) -> np.ndarray:
 
 
 def test_page_loads_without_errors(app):
-    app.page.wait_for_timeout(1000)
+    # The page gets frames and draws them a few times before anything is judged.
+    app.until(lambda: app.hook("e.framesReceived > 10 && e.framesRendered > 3"),
+              "the page did not receive 10 frames", scene=5)
     assert app.problems == []
     assert app.hook("e.errors") == []
     assert app.hook("e.framesReceived") > 10
@@ -183,13 +259,14 @@ def test_frame_decoder_reads_the_documented_layout(app):
 
 def test_characters_move(app):
     before, positions = app.view(), app.hook("e.positions()")
-    app.page.wait_for_timeout(1000)
+    # A scene second, and the view drawn again since.
+    progress = app.run_for(scene=1.0, frames=3)
     after, moved = app.view(), app.hook("e.positions()")
     changed = np.abs(after.astype(int) - before.astype(int)).max(axis=-1) > 16
-    assert changed.sum() > 500, "the 3-D view did not change in a second"
+    assert changed.sum() > 500, f"the 3-D view did not change ({progress})"
     for agent, xyz in positions.items():
         step = math.dist(xyz[::2], moved[agent][::2])
-        assert step > 0.3, f"agent {agent} moved {step:.2f} m in a second"
+        assert step > 0.3, f"agent {agent} moved {step:.2f} m ({progress})"
 
 
 def test_mannequin_bones_are_bound_by_name_and_follow_the_frames(app):
@@ -203,7 +280,7 @@ def test_mannequin_bones_are_bound_by_name_and_follow_the_frames(app):
         assert app.hook(f"e.mannequinOffset({agent})") < 1e-3
     app.page.click("#figure-sticks")
     assert app.hook("e.figureMode") == "sticks"
-    app.page.wait_for_timeout(300)
+    app.run_for(frames=3)
     app.page.click("#figure-mannequin")
     assert app.hook("e.figureMode") == "mannequin"
 
@@ -219,7 +296,7 @@ def test_happy_slider_makes_an_agent_happy(app):
         emotion = app.agents()[agent]["emotion"]
         return max(emotion, key=emotion.get) == "happy" and emotion["happy"] > 0.9
 
-    app.until(happy, 5, f"agent {agent} is not happy on the server")
+    app.until(happy, f"agent {agent} is not happy on the server", scene=5)
 
 
 def test_valence_arousal_disc_sets_emotion(app):
@@ -232,7 +309,8 @@ def test_valence_arousal_disc_sets_emotion(app):
         state = app.agents()[agent]
         return state["valence"] < -0.2 and state["arousal"] > 0.2
 
-    app.until(unpleasant_and_aroused, 5, f"agent {agent} did not take the disc's emotion")
+    app.until(unpleasant_and_aroused, f"agent {agent} did not take the disc's emotion",
+              scene=5)
 
 
 def test_click_on_the_ground_places_an_agent(app):
@@ -241,11 +319,13 @@ def test_click_on_the_ground_places_an_agent(app):
     spots = np.array([[x, z] for x in (-1.0, 0.0, 1.0) for z in (-3.0, 0.0, 3.0)])
     spot = max(spots, key=lambda p: np.linalg.norm(positions - p, axis=1).min())
     app.page.mouse.click(*app.hook(f"e.toScreen({spot[0]}, {spot[1]})"))
-    added = app.until(lambda: set(app.agents()) - set(before), 5, "no agent was added")
+    added = app.until(lambda: set(app.agents()) - set(before), "no agent was added", scene=5)
     (agent,) = added
     path = np.array(app.agents()[agent]["path"])
     np.testing.assert_allclose((path.min(0) + path.max(0)) / 2, spot, atol=0.1)
-    app.until(lambda: app.hook("e.selected") == agent, 5, "the new agent is not selected")
+    # Selected in the render loop once its first frame came.
+    app.until(lambda: app.hook("e.selected") == agent, "the new agent is not selected",
+              scene=5, frames=10)
 
 
 def test_drawn_path_is_followed(app):
@@ -279,7 +359,8 @@ def test_drawn_path_is_followed(app):
     assert _distance_to_polyline(drawn, wanted).max() < 0.1
 
     path = np.array(app.until(lambda: app.agents()[agent]["path"] != states[agent]["path"]
-                              and app.agents()[agent]["path"], 5, "the path did not change"))
+                              and app.agents()[agent]["path"], "the path did not change",
+                              scene=5))
     # The server's path is a smooth curve through the drawn points.
     np.testing.assert_allclose(path[[0, -1]], drawn[[0, -1]], atol=0.05)
     assert _distance_to_polyline(path, drawn).max() < 0.15
@@ -290,21 +371,20 @@ def test_drawn_path_is_followed(app):
         return (_distance_to_polyline(here[None], path)[0] < 0.4
                 and np.linalg.norm(here - start) > 1.5)
 
-    app.until(on_the_path, 8, f"agent {agent} does not walk the drawn path")
+    app.until(on_the_path, f"agent {agent} does not walk the drawn path", scene=8)
 
 
 def test_click_on_an_agent_selects_it(app):
     # The agent at the end of its drawn (open) path stands or walks slowest: it moves least.
     before = app.hook("e.positions()")
-    app.page.wait_for_timeout(500)
+    app.run_for(scene=0.5)
     after = app.hook("e.positions()")
     agent = int(min(before, key=lambda a: math.dist(before[a], after[a])))
     app.select(next(a for a in app.hook("e.agents()") if a != agent))
     for _ in range(3):  # it may walk out from under the pointer while the click travels
         x, _, z = app.hook(f"e.positions()[{agent}]")
         app.page.mouse.click(*app.hook(f"e.toScreen({x}, {z})"))
-        app.page.wait_for_timeout(300)
-        if app.hook("e.selected") == agent:
+        if app.within(lambda: app.hook("e.selected") == agent, scene=0.3, frames=2)[0]:
             break
     assert app.hook("e.selected") == agent
     assert app.page.locator("#selected-name").inner_text() == f"Agent {agent}"
@@ -313,11 +393,19 @@ def test_click_on_an_agent_selects_it(app):
 def test_follow_camera_keeps_the_agent_in_view(app):
     agent = app.hook("e.selected")
     app.page.click("#camera-follow")
-    app.page.wait_for_timeout(2500)
-    x, z = app.hook(f"e.positions()[{agent}]")[::2]
-    px, py = app.hook(f"e.toScreen({x}, {z})")
-    assert abs(px - VIEWPORT["width"] / 2) < 0.2 * VIEWPORT["width"]
-    assert VIEWPORT["height"] / 2 < py < VIEWPORT["height"]
+    seen = []
+
+    def in_view() -> bool:
+        x, z = app.hook(f"e.positions()[{agent}]")[::2]
+        px, py = app.hook(f"e.toScreen({x}, {z})")
+        seen.append((round(px), round(py)))
+        return (abs(px - VIEWPORT["width"] / 2) < 0.2 * VIEWPORT["width"]
+                and VIEWPORT["height"] / 2 < py < VIEWPORT["height"])
+
+    # The camera closes in on the agent each rendered frame, by the frame's time (at most
+    # 0.5 s): 2.5 scene seconds and 10 rendered frames give it at least 2.5 s of that.
+    app.until(in_view, lambda: f"agent {agent} is at {seen[-1]} on the page, out of the "
+              "follow camera's view", scene=2.5, frames=10)
     app.page.click("#camera-fixed")
     assert app.hook("e.cameraMode") == "fixed"
 
@@ -325,14 +413,14 @@ def test_follow_camera_keeps_the_agent_in_view(app):
 def test_recording_downloads_as_bvh_and_glb(app):
     app.page.click("#record-start")
     app.page.wait_for_selector("#record-stop:not([disabled])")
-    app.page.wait_for_timeout(1000)
+    app.run_for(scene=1.0)
     app.page.click("#record-stop")
     links = app.page.locator("#downloads a")
     links.nth(1).wait_for()
     files = {}
     for href in links.evaluate_all("(as) => as.map((a) => a.getAttribute('href'))"):
         assert f"token={TOKEN}" in href
-        reply = httpx.get(f"{app.base}{href}", timeout=30)
+        reply = httpx.get(f"{app.base}{href}", timeout=REQUEST_SECONDS)
         reply.raise_for_status()
         files[parse_qs(urlsplit(href).query)["format"][0]] = reply.content
     assert files["bvh"].startswith(b"HIERARCHY")
@@ -366,7 +454,8 @@ def test_server_errors_show_as_toasts(app):
     app.page.locator(".toast").first.wait_for()
     assert len(app.hook("e.errors")) == 1
     assert len(app.agents()) == MAX_AGENTS
-    app.until(lambda: app.hook("e.framesReceived") > frames + 10, 5, "the stream stopped")
+    app.until(lambda: app.hook("e.framesReceived") > frames + 10, "the stream stopped",
+              frames=150)
     assert app.problems == []
 
 
@@ -374,8 +463,10 @@ def test_remove_button_removes_the_selected_agent(app):
     agent = app.hook("e.selected")
     assert agent is not None
     app.page.click("#remove-agent")
-    app.until(lambda: agent not in app.agents(), 5, f"agent {agent} is still on the server")
-    app.until(lambda: agent not in app.hook("e.agents()"), 5, f"agent {agent} is still drawn")
+    app.until(lambda: agent not in app.agents(), f"agent {agent} is still on the server",
+              scene=5)
+    app.until(lambda: agent not in app.hook("e.agents()"), f"agent {agent} is still drawn",
+              scene=5)
     assert app.hook("e.selected") is None
 
 
@@ -383,11 +474,12 @@ def test_webxr_buttons_where_sessions_are_supported(app, browser):
     # The tests of the main page are done: it leaves, so that its rendering (on the CPU)
     # does not slow down the pages of the tests below.
     app.page.goto("about:blank")
-    page = browser.new_page(viewport=VIEWPORT)
+    page = _new_page(browser)
     # A browser that says it supports both session types (no device behind it).
     page.add_init_script("XRSystem.prototype.isSessionSupported = async () => true;")
     page.goto(f"{app.base}/?token={TOKEN}")
-    page.wait_for_function("() => window.emotive?.ready", polling=200, timeout=60_000)
+    page.wait_for_function("() => window.emotive?.ready", polling=POLL_MS,
+                           timeout=HANG_SECONDS * 1000)
     buttons = page.locator("#xr button")
     buttons.nth(1).wait_for()
     assert sorted(buttons.all_inner_texts()) == ["ENTER VR", "START AR"]
@@ -396,8 +488,8 @@ def test_webxr_buttons_where_sessions_are_supported(app, browser):
 
 
 def test_a_page_without_the_token_says_so(app, browser):
-    page = browser.new_page(viewport=VIEWPORT)
+    page = _new_page(browser)
     page.goto(f"{app.base}/")
-    page.wait_for_function("() => window.emotive?.errors.length > 0", polling=200)
+    page.wait_for_function("() => window.emotive?.errors.length > 0", polling=POLL_MS)
     assert "needs its token" in page.locator("#stat-connection").inner_text()
     page.close()

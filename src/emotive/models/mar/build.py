@@ -331,6 +331,10 @@ def _reduce_windows(db: MARDatabase, yaws: np.ndarray, sample: int = 20000,
     pca_mean = full.mean(0)
     _, _, vt = np.linalg.svd(full - pca_mean, full_matrices=False)
     basis = vt[:db.config.pca_dims].T
+    # An axis's sign is arbitrary, and LAPACK's choice differs between BLAS kernels: each axis
+    # is turned to make its largest component positive, so the features agree across CPUs.
+    top = np.abs(basis).argmax(0)
+    basis = basis * np.where(basis[top, np.arange(basis.shape[1])] < 0, -1.0, 1.0)
     out = np.empty((db.num_frames, basis.shape[1]), dtype=np.float32)
     for start in range(0, db.num_frames, chunk):
         part = slice(start, start + chunk)

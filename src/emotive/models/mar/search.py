@@ -41,6 +41,12 @@ from emotive.models.mar.representation import LOWER_BODY_ROLES
 def rigid_distance(query: np.ndarray, candidates: np.ndarray, weights: np.ndarray) -> np.ndarray:
     """Equation 1: weighted squared distance after the best ground-plane rigid transform.
 
+    In float64: the neighbours are the order of these distances, and in float32 the BLAS
+    kernel that OpenBLAS picks for the CPU (summing in its own order) moved them by 2e-7,
+    enough to swap two neighbours 2.4e-7 apart and change the whole output on another
+    machine. In float64 kernels differ by 1e-16 relative, far below the gaps between
+    neighbours; equal distances are ordered by database frame (see :class:`PointCloudSearch`).
+
     Args:
         query: ``(s, P, 3)`` query window.
         candidates: ``(M, s, P, 3)`` database windows.
@@ -49,20 +55,19 @@ def rigid_distance(query: np.ndarray, candidates: np.ndarray, weights: np.ndarra
     Returns:
         ``(M,)`` distances (non-negative).
     """
-    dtype = np.result_type(candidates, np.float32)
     w = np.asarray(weights, dtype=np.float64).reshape(-1)
-    w = (w / w.sum()).astype(dtype)
-    q = np.asarray(query, dtype=dtype).reshape(-1, 3)
-    b = np.asarray(candidates, dtype=dtype).reshape(len(candidates), -1, 3)
+    w = w / w.sum()
+    q = np.asarray(query, dtype=np.float64).reshape(-1, 3)
+    b = np.asarray(candidates, dtype=np.float64).reshape(len(candidates), -1, 3)
     ax, ay, az = q[:, 0] - w @ q[:, 0], q[:, 1], q[:, 2] - w @ q[:, 2]
     bx, by, bz = b[..., 0], b[..., 1], b[..., 2]
-    bx = bx - (bx @ w)[:, None]
-    bz = bz - (bz @ w)[:, None]
+    mx, mz = bx @ w, bz @ w
     wax, waz = w * ax, w * az
+    # The query is centred (sum w a = 0), so the candidates' centring drops out of C and S.
     c = bx @ wax + bz @ waz
     s = bz @ wax - bx @ waz
     own = w @ (ax * ax + az * az + ay * ay)
-    other = (bx * bx + bz * bz + by * by) @ w
+    other = (bx * bx + bz * bz + by * by) @ w - mx * mx - mz * mz
     cross = by @ (w * ay)
     return np.maximum(own + other - 2.0 * np.sqrt(c * c + s * s) - 2.0 * cross, 0.0)
 
@@ -204,8 +209,8 @@ class PointCloudSearch:
         for i, part in enumerate(parts):
             d = dist[start:start + len(part)]
             take = min(k, len(part))
-            best = np.argpartition(d, take - 1)[:take] if take < len(part) else np.arange(take)
-            best = best[np.argsort(d[best])]
+            # Nearest first, equal distances by database order (a choice the same on any CPU).
+            best = np.lexsort((part, d))[:take]
             # Classes smaller than K repeat their farthest neighbour (keeps arrays rectangular).
             best = np.concatenate((best, np.full(k - take, best[-1])))
             frames[i], dists[i] = part[best], d[best]
@@ -220,5 +225,5 @@ class PointCloudSearch:
         """
         k = min(k or self.config.k, len(nb.pool))
         dist = nb.foot_distances
-        best = np.argpartition(dist, k - 1)[:k] if k < len(dist) else np.arange(len(dist))
+        best = np.lexsort((nb.pool, dist))[:k]
         return nb.pool[best], dist[best]

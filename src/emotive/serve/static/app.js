@@ -10,6 +10,7 @@
 //   agents()          ids of the agents in the latest frame
 //   positions()       {id: [x, y, z]} world position of each agent's mover joint, latest frame
 //   framesReceived    binary frames decoded so far
+//   framesRendered    frames the render loop has drawn so far
 //   lastFrame         {frame, time, ids} of the latest frame, or null
 //   selected          the selected agent's id, or null
 //   figureMode        "mannequin" or "sticks"
@@ -188,6 +189,7 @@ const app = {
   selected: null,
   lastFrame: null,
   framesReceived: 0,
+  framesRendered: 0,
   drawnPath: [],
   recording: null,
   connection: null,
@@ -627,6 +629,7 @@ function render(time, xrFrame) {
   if (selected) selectionRing.position.set(selected.position.x, 0.01, selected.position.z);
   renderer.render(scene, camera);
   rendered++;
+  app.framesRendered++;
 }
 
 function everySecond() {
@@ -653,6 +656,7 @@ window.emotive = Object.freeze({
   agents: () => [...app.agents.keys()],
   positions: () => Object.fromEntries([...app.agents].map(([id, a]) => [id, a.position.toArray()])),
   get framesReceived() { return app.framesReceived; },
+  get framesRendered() { return app.framesRendered; },
   get lastFrame() {
     const f = app.lastFrame;
     return f && { frame: f.frame, time: f.time, ids: [...f.ids] };
