@@ -9,6 +9,11 @@ frames), for an unlabeled input and for one labelled with its action. Also: seco
 the index and build the trees, and the memory they take (resident set growth and the arrays'
 bytes). Numbers are medians over the streamed frames.
 
+Also, the whole clip as ``emotive transfer`` runs it (stream, foot pinning and, on another
+rig, retargeting there and back; index already loaded): milliseconds per input frame on the
+clip retargeted onto a Mixamo-named rig standing in a T-pose, against the same clip on the
+Bandai rig, best of two interleaved rounds each.
+
 Usage: ``python -m bench.bench_mar [--frames N] [--baseline-frames N]``.
 """
 
@@ -23,12 +28,14 @@ from pathlib import Path
 import torch
 
 from bench.common import comparison, machine_info, write_record
+from emotive.core.rig_layouts import to_layout
 from emotive.data.clips import load_clips
 from emotive.models.mar.database import MARDatabase
 from emotive.models.mar.default_index import default_index_path, load_default_index
 from emotive.models.mar.representation import RigCodec
 from emotive.models.mar.search import PointCloudSearch
-from emotive.models.mar.transfer import StyleTransfer
+from emotive.models.mar.transfer import StyleTransfer, transfer_motion
+from emotive.retarget import rest_template, retarget
 
 HERE = Path(__file__).resolve().parent
 
@@ -53,6 +60,26 @@ def _stream_ms(db, search, motion, frames: int, brute: bool, action: str | None)
         if t >= 5:
             times.append(time.perf_counter() - start)
     return 1000.0 * statistics.median(times)
+
+
+def _clip_ms(db, search, motion) -> float:
+    """Milliseconds per input frame of :func:`transfer_motion` on the whole clip."""
+    start = time.perf_counter()
+    transfer_motion(motion, db, "proud=0.6,angry=0.4", search=search)
+    return 1000.0 * (time.perf_counter() - start) / motion.num_frames
+
+
+def _other_rig_row(db, search, motion) -> dict:
+    """Whole-clip transfer on a Mixamo-named rig against the Bandai rig, same clip."""
+    rig = rest_template(to_layout(motion, "mixamo").skeleton)
+    other = retarget(motion, rig)
+    bandai, mixamo = [], []
+    for _ in range(2):
+        bandai.append(_clip_ms(db, search, motion))
+        mixamo.append(_clip_ms(db, search, other))
+    return comparison(f"mar whole-clip ms/frame [Mixamo rig, {motion.num_frames} frames]",
+                      "ms", min(mixamo), min(bandai), "the same clip on the Bandai rig",
+                      higher_is_better=False)
 
 
 def run(frames: int = 200, baseline_frames: int = 20) -> list[dict]:
@@ -81,6 +108,7 @@ def run(frames: int = 200, baseline_frames: int = 20) -> list[dict]:
             records.append(comparison(
                 f"mar transfer ms/frame [{label}, {db.num_frames} db frames]", "ms",
                 fast, slow, "brute-force exact search", higher_is_better=False))
+        records.append(_other_rig_row(db, search, motion))
     records.append({"name": "mar index load + trees", "unit": "s", "ours": load_s,
                     "baseline": float("nan"), "baseline_name": "-", "higher_is_better": False,
                     "ratio": float("nan")})

@@ -68,7 +68,7 @@ from emotive.data.clips import load_clips
 from emotive.data.splits import split_clips
 from emotive.eval.anova import mixed_anova
 from emotive.eval.classifier import ClassifierError, load_default_classifier
-from emotive.eval.classifier_training import load_split_features, train_classifier
+from emotive.eval.classifier_training import load_tracks, split_features, train_classifier
 from emotive.eval.stats import MissingDependencyError, StatsInputError
 from emotive.ik import reconstruct, resolve_chains
 from emotive.models.lgb.bootstrap import LocalGridBootstrap
@@ -278,7 +278,8 @@ def heldout_judged(clips: list, rebuilt: dict, seed: int, workers: int
         emotion -> window accuracy (argmax).
     """
     config = load_default_classifier().config
-    items = [i for split in load_split_features(config).values() for i in split]
+    items = [i for split in split_features(load_tracks(config.datasets), config).values()
+             for i in split]
     probs: dict[str, dict[str, list]] = {s: {e: [] for e in EMOTIONS}
                                          for s in ("original", "rebuilt", "resampled")}
     for h, fold in enumerate(folds(clips)):

@@ -52,3 +52,17 @@ class OutputError(EmotiveError):
 
 class ConfigError(EmotiveError):
     """A config file or checkpoint that is missing or holds a bad key or value."""
+
+
+class MotionFileError(EmotiveError):
+    """A glTF or FBX motion file that cannot be read (BVH files raise :class:`BVHError`).
+
+    Args:
+        path: the file.
+        problem: what is wrong, phrased so the user can fix it.
+    """
+
+    def __init__(self, path: str | Path, problem: str) -> None:
+        self.path = str(path)
+        self.problem = problem
+        super().__init__(f"{self.path}: {problem}")

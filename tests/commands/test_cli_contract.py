@@ -26,6 +26,17 @@ from cli_helpers import run_main
      ["valence=3 is outside -1.5..1.5", "old FCRBM 1..3 scale, subtract 2: valence=1"]),
     (["generate", "--no-such-flag"], ["--no-such-flag"]),
     (["reconstruct", "clip.bvh", "--role-map", "bandai", "-o", "r.bvh"], ["--role-map"]),
+    (["generate", "--seed", "-1", "-o", "w.bvh"], ["--seed", "greater than or equal to 0"]),
+    (["generate", "--model", "lgb", "--seed", "-1", "-o", "w.bvh"], ["--seed", "0"]),
+    (["generate", "--model", "fcrbm", "--seed", "-1", "-o", "w.bvh"], ["--seed", "0"]),
+    (["generate", "--seed", str(2**32), "-o", "w.bvh"], ["--seed", "4294967295"]),
+    (["fcrbm", "generate", "--seed", "-1", "-o", "w.bvh"], ["--seed", "0"]),
+    (["serve", "--seed", "-1"], ["--seed", "greater than or equal to 0"]),
+    (["train", "classifier", "--seed", "-1"], ["--seed", "0"]),
+    (["generate", "--emotion", "happy=0.7,sad", "-o", "w.bvh"],
+     ["'sad'", "has no weight", "sad=0.3"]),
+    (["generate", "-o", "/proc/w.bvh"], ["cannot write /proc", "virtual file system"]),
+    (["generate", "--raw", "true", "-o", "w.bvh"], ["true"]),
 ])
 def test_invalid_values_are_one_error_line_with_exit_code_2(monkeypatch, capsys, tmp_path,
                                                              args, words):
@@ -87,3 +98,10 @@ def test_help_imports_no_torch():
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           timeout=120)
     assert proc.stdout.strip().splitlines()[-1] == "False", proc.stderr
+
+
+def test_boolean_options_come_in_pairs_and_show_no_value(monkeypatch, capsys):
+    code, out, _ = run_main(monkeypatch, capsys, "generate", "--help")
+    assert code == 0
+    line = next(x for x in out.splitlines() if "--raw" in x)
+    assert "--no-raw" in line and "<bool>" not in line, line

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
 import pytest
 
 from cli_helpers import invoke_command
@@ -94,3 +95,40 @@ def test_template_of_a_rig_lacking_roles_names_them_null(clip, tmp_path):
     roles.write_text(json.dumps(template | {"head": "Kopf"}))
     result = invoke_command("features", features, path, "--out", out, "--roles", roles)
     assert result.exit_code == 0, result.output
+
+
+def _mixamo_without_spine2(clip, prefix):
+    """A Mixamo rig that stops at ``Spine1`` and has no fingers: only names CMU shares."""
+    motion = to_layout(clip, "cmu-plain", prefix=prefix)
+    sk = motion.skeleton
+    drop = ("FingerBase", "HandIndex1", "Thumb")
+    keep = [j for j, n in enumerate(sk.names) if not n.endswith(drop)]
+    rig = Skeleton(tuple(sk.names[j] for j in keep),
+                   [keep.index(p) if p >= 0 else -1 for p in sk.parents[keep]],
+                   sk.offsets[keep], tuple(sk.channels[j] for j in keep),
+                   [keep.index(p) for p in sk.end_site_parents if p in keep],
+                   sk.end_site_offsets[np.isin(sk.end_site_parents, keep)])
+    return motion.replace(skeleton=rig, rotations=motion.rotations[:, keep],
+                          positions=motion.positions[:, keep])
+
+
+@pytest.mark.parametrize("prefix", ["mixamorig:", "mixamorig1:", "Armature|mixamorig:",
+                                    "mixamorig12:"])
+def test_info_names_mixamo_rigs_without_spine2_by_their_namespace(clip, tmp_path, prefix):
+    motion = _mixamo_without_spine2(clip, prefix)
+    assert not any(n.endswith("Spine2") for n in motion.skeleton.names)
+    path = write_bvh(motion, tmp_path / "mixamo.bvh")
+    result = invoke_command("info", info, path)
+    assert result.exit_code == 0, result.output
+    assert "rig family: mixamo" in result.output and "missing" not in result.output
+
+
+@pytest.mark.parametrize("prefix", ["mixamorig:", "mixamorig1:"])
+def test_info_names_mixamo_rigs_with_spine2_under_any_namespace(clip, tmp_path, prefix):
+    path = write_bvh(to_layout(clip, "mixamo", prefix=prefix), tmp_path / "mixamo.bvh")
+    assert "rig family: mixamo" in invoke_command("info", info, path).output
+
+
+def test_the_same_names_without_the_namespace_stay_cmu(clip, tmp_path):
+    path = write_bvh(_mixamo_without_spine2(clip, ""), tmp_path / "plain.bvh")
+    assert "rig family: cmu" in invoke_command("info", info, path).output

@@ -78,6 +78,8 @@ class TestParse:
             ("", r"empty emotion"),
             ("happy=1,,sad=1", r"extra comma"),
             ("=1", r"has no name"),
+            ("happy=0.7,sad", r"entry 'sad' of the blend .* has no weight.*'sad=0.3'"),
+            ("happy,sad", r"entry 'happy' of the blend .* has no weight"),
         ],
     )
     def test_errors(self, text, message):

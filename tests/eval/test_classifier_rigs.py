@@ -2,9 +2,9 @@
 
 Other rigs are built by the project's own code from a real held-out walk
 (:func:`emotive.core.rig_layouts.to_layout`, written to BVH in the family's unit and read back
-with the unit detected); the role points move only where the families differ (hand and toe
-tips), so the calibrated probabilities must stay within 0.1 (the issue's round-trip bound) and
-the walk must not read as unsure.
+with the unit detected); the classifier reads joints only (hand tips at the wrists, toes at the
+toe joint), which every family places alike, so the calibrated probabilities must stay within
+0.02 and the walk must not read as unsure. Random rig variants: ``test_judge_invariance.py``.
 """
 
 from __future__ import annotations
@@ -37,7 +37,7 @@ def test_every_rig_family_reads_alike(judged_walk, layout, tmp_path):
     assert other.skeleton.names != walk.skeleton.names
     judged = model.judge(other)
     assert len(judged.times) == len(base.times)
-    assert np.abs(judged.probabilities.mean(0) - base.probabilities.mean(0)).max() <= 0.1
+    assert np.abs(judged.probabilities - base.probabilities).max() <= 0.02
     assert not judged.clip_unsure
 
 

@@ -229,14 +229,25 @@ def test_schedule_requests_switch_in_the_middle():
 
 
 @pytest.mark.data
-def test_table1_suite_for_a_predictor(bandai1_dir, classifier):
-    results, _ = run_suites(resolve_subject("zero-velocity"), "all", classifier)
+def test_table1_suite_for_a_predictor(bandai1_dir, bandai2_dir, classifier, monkeypatch):
+    subject = resolve_subject("zero-velocity")
+    assert [b.name for b in suites.table1_baselines(subject.predictor)] == ["QuaterNet"]
+    # QuaterNet on every window at two rates takes a minute; the suite's real numbers are
+    # checked by test_headline_numbers.py.
+    monkeypatch.setattr(suites, "table1_baselines", lambda predictor: [])
+    results, _ = run_suites(subject, "all", classifier)
     assert list(results) == ["table1"]
-    at10 = results["table1"]["results"]["10 fps"]
+    by_set = results["table1"]["results"]["10 fps"]
+    assert list(by_set) == ["dataset 1", "dataset 2", "both"]
+    at10 = by_set["dataset 1"]
     assert (at10["primer_frames"], at10["predicted_frames"]) == (18, 42)
+    assert list(at10["predictors"]) == ["Zero velocity"]
     zero = at10["predictors"]["Zero velocity"]["overall"]
     assert zero["windows"] == at10["windows"] > 0
     assert 0 < zero["pose"] < 1 and zero["rotation"] > 0
+    assert by_set["both"]["windows"] == at10["windows"] + by_set["dataset 2"]["windows"]
+    horizon = results["table1"]["horizon"]["both"]
+    assert horizon["frames"][-1] == 42 and len(horizon["pose"]["Zero velocity"]) == 8
     assert "| Zero velocity |" in results["table1"]["markdown"]
 
 
@@ -371,18 +382,6 @@ def test_a_transfer_model_is_judged_on_clips_in_each_label(random_motion, classi
     motions = subject.read_motions()
     assert [m.name for m in motions] == ["clip -> happy", "clip -> sad"]
     np.testing.assert_array_equal(motions[1].intended, np.tile([0, 1.0], (40, 1)))
-
-
-@pytest.mark.data
-def test_the_gait_network_clears_table1_and_beats_quaternet(bandai1_dir, classifier):
-    results, _ = run_suites(resolve_subject("gait"), "table1", classifier)
-    ours = results["table1"]["results"]["10 fps"]["predictors"]["Ours"]["overall"]
-    base, _ = run_suites(resolve_subject("quaternet"), "table1", classifier)
-    quaternet = base["table1"]["results"]["10 fps"]["predictors"]["QuaterNet"]["overall"]
-    # Issue 3's targets: pose error at most 0.12 of the bounding-box diagonal, and better than
-    # the QuaterNet baseline in pose and rotation error.
-    assert ours["pose"] <= 0.12
-    assert ours["pose"] < quaternet["pose"] and ours["rotation"] < quaternet["rotation"]
 
 
 def test_the_classifier_and_mar_are_evaluable_subjects():

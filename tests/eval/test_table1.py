@@ -246,3 +246,40 @@ def test_zero_velocity_on_the_locomotion_test_split(bandai1_dir):
     # Body rotations of a walk change by more than a degree within seconds, and by less than
     # a right angle on average.
     assert 1.0 < o.rotation < 90.0 and 1.0 < o.euler < 90.0
+
+
+def test_pose_by_frame_averages_to_the_window_pose_error(random_motion):
+    clips = [clip(random_motion(frames=240, seed=1), "a"), clip(random_motion(frames=90, seed=2),
+                                                                "b", "sad")]
+    result = table1([ZeroVelocity()], clips, fps=10.0)
+    scores = result["Zero velocity"]
+    assert scores.pose_by_frame.shape == (result.windows, result.predicted_frames)
+    np.testing.assert_allclose(scores.pose_by_frame.mean(-1), scores.errors[:, 0], rtol=1e-12)
+
+
+def test_merged_runs_equal_one_run_over_all_clips(random_motion):
+    a = [clip(random_motion(frames=240, seed=1), "a"), clip(random_motion(frames=90, seed=2),
+                                                            "b", "sad")]
+    b = [clip(random_motion(frames=210, seed=3), "c", "angry")]
+    oracle = Oracle({c.info.name: resample(c.motion, 10.0) for c in a + b})
+    models = [ZeroVelocity(), oracle]
+    whole = table1(models, a + b, fps=10.0)
+    merged = t1.merge_results([table1(models, a, fps=10.0), table1(models, b, fps=10.0)])
+    assert merged.window_clips == whole.window_clips
+    assert merged.window_emotions == whole.window_emotions
+    np.testing.assert_array_equal(merged.window_starts, whole.window_starts)
+    for name in ("Zero velocity", "Oracle"):
+        np.testing.assert_array_equal(merged[name].errors, whole[name].errors)
+        np.testing.assert_array_equal(merged[name].pose_by_frame, whole[name].pose_by_frame)
+        assert merged[name].overall == whole[name].overall
+        assert merged[name].per_emotion == whole[name].per_emotion
+    assert merged.to_dict() == whole.to_dict()
+
+
+def test_merge_refuses_different_protocols(random_motion):
+    clips = [clip(random_motion(frames=240, seed=1), "a")]
+    with pytest.raises(ValueError, match="no results"):
+        t1.merge_results([])
+    with pytest.raises(ValueError, match="different predictors or protocol"):
+        t1.merge_results([table1([ZeroVelocity()], clips, fps=10.0),
+                          table1([ZeroVelocity()], clips, fps=30.0)])

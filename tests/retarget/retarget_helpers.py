@@ -6,11 +6,12 @@ from pathlib import Path
 
 import numpy as np
 
-from emotive.core import Motion
+from emotive.core import Motion, Skeleton
 from emotive.core.ops import crop
 from emotive.core.roles import resolve_roles
 from emotive.features.contacts import leg_length
 from emotive.io.bvh import read_bvh
+from emotive.retarget import rest_template
 from emotive.retarget.rest import ROLE_PARENT
 
 
@@ -50,3 +51,41 @@ def speed_per_leg(motion: Motion) -> float:
     """Root speed over leg length (leg lengths per second)."""
     legs = leg_length(motion.positions_with_end_sites(), resolve_roles(motion.skeleton))
     return root_speed(motion) / legs
+
+
+def mixamo_cm_rig(prefix: str = "mixamorig:", spine2: bool = True) -> Skeleton:
+    """A Mixamo-named rig without fingers, standing in a T-pose, with end sites that reach.
+
+    The head's end site is 15 cm above it and the hands' 10 cm beyond the wrists (rigs
+    exported from DCC tools end their limbs past the last joint, unlike the Bandai rig).
+
+    Args:
+        prefix: the joint names' namespace (``"mixamorig:"``, ``"mixamorig1:"``, ``""``).
+        spine2: whether the rig has ``Spine2`` (older Mixamo rigs stop at ``Spine1``).
+    """
+    joints = [("Hips", None, (0, 95, 0)), ("Spine", "Hips", (0, 10, 0)),
+              ("Spine1", "Spine", (0, 12, 0))]
+    top = "Spine1"
+    if spine2:
+        joints.append(("Spine2", "Spine1", (0, 12, 0)))
+        top = "Spine2"
+    joints += [("Neck", top, (0, 15, 0)), ("Head", "Neck", (0, 10, 0))]
+    for side, x in (("Left", 1), ("Right", -1)):
+        joints += [(f"{side}Shoulder", top, (x * 5, 10, 0)),
+                   (f"{side}Arm", f"{side}Shoulder", (x * 13, 0, 0)),
+                   (f"{side}ForeArm", f"{side}Arm", (x * 28, 0, 0)),
+                   (f"{side}Hand", f"{side}ForeArm", (x * 25, 0, 0))]
+    for side, x in (("Left", 1), ("Right", -1)):
+        joints += [(f"{side}UpLeg", "Hips", (x * 10, -5, 0)),
+                   (f"{side}Leg", f"{side}UpLeg", (0, -43, 0)),
+                   (f"{side}Foot", f"{side}Leg", (0, -42, 0)),
+                   (f"{side}ToeBase", f"{side}Foot", (0, -7, 12))]
+    names = [n for n, _, _ in joints]
+    ends = {"Head": (0, 15, 0), "LeftHand": (10, 0, 0), "RightHand": (-10, 0, 0),
+            "LeftToeBase": (0, 0, 8), "RightToeBase": (0, 0, 8)}
+    rig = Skeleton(tuple(prefix + n for n in names),
+                   [names.index(p) if p else -1 for _, p, _ in joints],
+                   np.array([o for _, _, o in joints], dtype=float) / 100.0,
+                   end_site_parents=[names.index(n) for n in ends],
+                   end_site_offsets=np.array(list(ends.values()), dtype=float) / 100.0)
+    return rest_template(rig, pose="t")

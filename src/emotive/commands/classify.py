@@ -11,7 +11,7 @@ from typing import Annotated
 
 import typer
 
-from emotive.commands.options import RolesOpt, UnitOpt, positive, read_input
+from emotive.commands.options import RolesOpt, UnitOpt, flag, positive, read_input
 
 ModelOpt = Annotated[
     Path | None,
@@ -21,7 +21,8 @@ ModelOpt = Annotated[
 
 
 def classify(
-    file: Annotated[Path, typer.Argument(help="BVH file.", show_default=False)],
+    file: Annotated[Path, typer.Argument(help="Motion file: .bvh, .glb/.gltf or .fbx.",
+                                            show_default=False)],
     model: ModelOpt = None,
     window: Annotated[
         float, typer.Option(help="Seconds per judged window (at least 0.8).", callback=positive)
@@ -31,7 +32,7 @@ def classify(
     ] = 1.0,
     roles: RolesOpt = None,
     unit: UnitOpt = "auto",
-    as_json: Annotated[bool, typer.Option("--json", help="Print JSON instead of a table.")] = False,
+    as_json: Annotated[bool, flag("json", "Print JSON instead of a table.")] = False,
 ) -> None:
     """Print the perceived emotion of a clip over time (probabilities per window).
 

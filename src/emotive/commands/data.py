@@ -9,6 +9,8 @@ from typing import Annotated
 
 import typer
 
+from emotive.commands.options import flag
+
 app = typer.Typer(
     help="List, fetch and describe the motion data sets.",
     no_args_is_help=True,
@@ -52,7 +54,7 @@ def fetch(
         ),
     ] = None,
     force: Annotated[
-        bool, typer.Option("--force", help="Fetch and unpack again even when cached.")
+        bool, flag("force", "Fetch and unpack again even when cached.")
     ] = False,
 ) -> None:
     """Download or copy a data set's archive, check its sha256 and unpack it into the cache."""
@@ -82,14 +84,14 @@ def path(
 def stats(
     name: Annotated[str, typer.Argument(help="Data set name (see `emotive data list`).")],
     locomotion: Annotated[
-        bool, typer.Option("--locomotion", help="Only the locomotion contents.")
+        bool, flag("locomotion", "Only the locomotion contents.")
     ] = False,
     markdown: Annotated[
-        bool, typer.Option("--markdown", help="Print Markdown tables (for the README).")
+        bool, flag("markdown", "Print Markdown tables (for the README).")
     ] = False,
     val_fraction: Annotated[float, typer.Option(help="Share of each style for validation.")] = 0.1,
     test_fraction: Annotated[float, typer.Option(help="Share of each style for testing.")] = 0.1,
-    seed: Annotated[int, typer.Option(help="Seed of the split.")] = 0,
+    seed: Annotated[int, typer.Option(help="Seed of the split.", min=0, max=2**32 - 1)] = 0,
 ) -> None:
     """Frames per content and style (emotion) in each split (train/val/test) and in all."""
     from rich.console import Console

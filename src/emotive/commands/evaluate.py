@@ -50,9 +50,9 @@ def parse_options(items: list[str] | None) -> dict[str, Any]:
 
 def evaluate(
     model: Annotated[
-        str, typer.Option("--model", help="A folder of BVH files with intended emotions, a "
-                          f"registered model ({', '.join(REGISTRY)}) or a gait checkpoint "
-                          "(.pt).", show_default=False)
+        str, typer.Option("--model", help="A folder of motion files (BVH, glTF, FBX) with "
+                          f"intended emotions, a registered model ({', '.join(REGISTRY)}) or a "
+                          "gait checkpoint (.pt).", show_default=False)
     ],
     suite: Annotated[
         str, typer.Option("--suite", help=f"{', '.join(SUITE_NAMES)} or all (every suite the "
@@ -78,7 +78,10 @@ def evaluate(
                             "generator.", min=1.0, max=3600.0)
     ] = 10.0,
 ) -> None:
-    """Evaluate a model or a folder of BVH files: report.md, metrics.json and plots."""
+    """Evaluate a model or a folder of BVH files: report.md, metrics.json and plots.
+
+    The table1 suite also prints its tables (per data set, pooled, and by horizon).
+    """
     from rich.console import Console
 
     from emotive.eval.classifier import EmotionClassifier, load_default_classifier
@@ -99,5 +102,9 @@ def evaluate(
     results, info = run_suites(subject, suite, clf, progress=True,
                                requests=standard_requests(clf.labels, seconds))
     folder = write_report(out, subject.name, results, info)
+    # The prediction tables are short and are what a user runs this suite for: on the terminal.
+    if "table1" in results:
+        Console().print(results["table1"]["markdown"], markup=False, highlight=False,
+                        soft_wrap=True)
     Console(stderr=True).print(f"wrote {folder / 'report.md'}, {folder / 'metrics.json'} and "
                                f"{sum(len(r.get('figures', [])) for r in results.values())} plots")

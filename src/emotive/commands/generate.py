@@ -32,6 +32,7 @@ from emotive.commands.options import (
     SecondsOpt,
     SeedOpt,
     UnitOpt,
+    flag,
     out_option,
     read_input,
 )
@@ -232,8 +233,9 @@ def generate(
     ] = None,
     rig: Annotated[
         Path | None,
-        typer.Option("--rig", help="BVH file of your character's rig: the motion is "
-                     "retargeted onto it (its joint names, bone lengths, channels and unit).",
+        typer.Option("--rig", help="File of your character's rig (.bvh, .glb/.gltf or "
+                     ".fbx): the motion is retargeted onto it (its joint names, bone lengths, "
+                     "channels and unit).",
                      show_default=False),
     ] = None,
     rig_roles: Annotated[
@@ -249,8 +251,8 @@ def generate(
                      show_default=False),
     ] = None,
     raw: Annotated[
-        bool, typer.Option("--raw", help="gait: skip the foot-contact cleanup (planted feet "
-                           "pinned by inverse kinematics): the network's output as it is."),
+        bool, flag("raw", "gait: skip the foot-contact cleanup (planted feet pinned by "
+                     "inverse kinematics): the network's output as it is."),
     ] = False,
     gibbs: Annotated[
         int | None,

@@ -23,7 +23,8 @@ from emotive.io.outputs import check_output
 PLOT_SUFFIXES = (".png", ".pdf", ".svg")
 
 FileArg = Annotated[
-    Path, typer.Argument(help="BVH file.", dir_okay=True, show_default=False)
+    Path, typer.Argument(help="Motion file: .bvh, .glb, .gltf or .fbx.", dir_okay=True,
+                         show_default=False)
 ]
 
 
@@ -61,7 +62,7 @@ def info(
     unit: UnitOpt = "auto",
     roles_template: Annotated[
         bool,
-        typer.Option("--roles-template",
+        typer.Option("--roles-template", metavar="",
                      help="Print the rig's role map as JSON (detected joints filled in, missing "
                      "roles null) to edit and pass back with --roles, and nothing else."),
     ] = False,

@@ -10,6 +10,7 @@ from typing import Annotated
 
 import typer
 
+from emotive.commands.options import flag
 from emotive.models.registry import REGISTRY, ModelEntry
 
 
@@ -21,7 +22,7 @@ def entry_row(entry: ModelEntry) -> dict[str, object]:
 
 
 def models(
-    as_json: Annotated[bool, typer.Option("--json", help="Print JSON instead of a table.")]
+    as_json: Annotated[bool, flag("json", "Print JSON instead of a table.")]
     = False,
 ) -> None:
     """List the registered models: name, kinds, default weights, summary and options."""

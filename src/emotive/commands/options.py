@@ -74,11 +74,23 @@ UnitOpt = Annotated[
     str,
     typer.Option("--unit", callback=length_unit,
                  help="Length unit of the BVH file(s) read: auto (from the figure's standing "
-                 "height, 1.2-2.2 m), m, cm, mm, in (inch) or cmu (CMU's 1/0.45 inch)."),
+                 "height, 1.2-2.2 m), m, cm, mm, in (inch) or cmu (CMU's 1/0.45 inch). "
+                 "glTF and FBX files are in metres unless a unit is given."),
 ]
+#: Largest ``--seed``: NumPy's generators take seeds of 32 bits.
+SEED_MAX = 2**32 - 1
 SeedOpt = Annotated[
-    int, typer.Option("--seed", help="Random seed: the same seed gives the same output.")
+    int, typer.Option("--seed", help="Random seed: the same seed gives the same output.",
+                      min=0, max=SEED_MAX)
 ]
+
+
+def flag(name: str, help: str) -> Any:
+    """A boolean option spelled ``--NAME/--no-NAME``, shown in help without a value type.
+
+    E.g. ``raw: Annotated[bool, flag("raw", "Skip the cleanup.")] = False``.
+    """
+    return typer.Option(f"--{name}/--no-{name}", help=help, metavar="")
 SecondsOpt = Annotated[
     float, typer.Option("--seconds", help="Length of the output, seconds (above 0).",
                         callback=positive),
@@ -102,8 +114,9 @@ EmotionScheduleOpt = Annotated[
 ]
 PrimerOpt = Annotated[
     Path | None,
-    typer.Option("--primer", help="Start from this BVH clip (any humanoid rig: retargeted onto "
-                 "the model's) instead of the model's own start.", show_default=False),
+    typer.Option("--primer", help="Start from this clip, .bvh, .glb/.gltf or .fbx (any "
+                 "humanoid rig: retargeted onto the model's) instead of the model's own start.",
+                 show_default=False),
 ]
 ConfigOpt = Annotated[
     Path, typer.Option("--config", help=r"TOML file with \[model] and \[train] sections.")
@@ -111,7 +124,7 @@ ConfigOpt = Annotated[
 TrainOutOpt = Annotated[
     Path, typer.Option("--out", help="Folder for last.pt, best.pt and log.csv.")
 ]
-ResumeOpt = Annotated[bool, typer.Option("--resume", help="Continue from the folder's last.pt.")]
+ResumeOpt = Annotated[bool, flag("resume", "Continue from the folder's last.pt.")]
 EpochsOpt = Annotated[
     int | None,
     typer.Option("--epochs", help=r"Epochs in all (default: the config's \[train] epochs).",
@@ -120,14 +133,18 @@ EpochsOpt = Annotated[
 
 
 def read_input(path: Path, unit: str = "auto"):
-    """Read a BVH file given on the command line in the ``--unit`` the user chose.
+    """Read a motion or rig file given on the command line in the ``--unit`` the user chose.
+
+    BVH, glTF (``.glb``/``.gltf``) or FBX (through Blender), by suffix
+    (:func:`emotive.io.motion_files.read_motion`).
 
     Raises:
-        BVHError: the file cannot be read (see :func:`emotive.io.bvh.read_bvh`).
+        BVHError: a BVH file that cannot be read (see :func:`emotive.io.bvh.read_bvh`).
+        MotionFileError: a glTF or FBX file that cannot be read, or FBX without Blender.
     """
-    from emotive.io.bvh import read_bvh
+    from emotive.io.motion_files import read_motion
 
-    return read_bvh(path, unit=unit)
+    return read_motion(path, unit=unit)
 
 
 def deprecated(old: str, new: str) -> None:

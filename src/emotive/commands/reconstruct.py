@@ -70,7 +70,8 @@ def summary(result: IKResult, fps: float, verb: str = "rebuilt") -> str:
 
 
 def reconstruct(
-    input: Annotated[Path, typer.Argument(help="BVH clip to rebuild.", show_default=False)],
+    input: Annotated[Path, typer.Argument(help="Clip to rebuild: .bvh, .glb/.gltf or .fbx.",
+                                             show_default=False)],
     out: Annotated[Path, out_option(ON_INPUT_RIG)],
     role_map: RolesOpt = None,
     unit: UnitOpt = "auto",

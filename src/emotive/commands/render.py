@@ -14,7 +14,8 @@ from emotive.commands.options import UnitOpt, out_option, positive, read_input
 
 
 def preview(
-    file: Annotated[Path, typer.Argument(help="BVH file.", show_default=False)],
+    file: Annotated[Path, typer.Argument(help="Motion file: .bvh, .glb/.gltf or .fbx.",
+                                            show_default=False)],
     out: Annotated[Path, out_option("Output video: .mp4 or .gif.")],
     path: Annotated[
         str | None,

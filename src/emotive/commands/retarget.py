@@ -53,11 +53,12 @@ def summary(source: Motion, result: Motion, rig: Path, role_map: str | None = No
 
 
 def retarget(
-    input: Annotated[Path, typer.Argument(help="BVH clip to retarget.", show_default=False)],
+    input: Annotated[Path, typer.Argument(help="Clip to retarget: .bvh, .glb/.gltf or .fbx.",
+                                             show_default=False)],
     to: Annotated[
         Path,
-        typer.Option("--to", help="BVH file of the target rig (its skeleton is used, not its "
-                     "frames).", show_default=False),
+        typer.Option("--to", help="File of the target rig, .bvh, .glb/.gltf or .fbx (its "
+                     "skeleton is used, not its frames).", show_default=False),
     ],
     out: Annotated[Path, out_option("Output .bvh (the --to rig's joint names, channel order "
                                     "and unit) or .glb/.gltf (with a skinned mannequin).")],

@@ -16,6 +16,7 @@ from typing import Annotated
 import typer
 
 from emotive.commands.options import (
+    SEED_MAX,
     ConfigOpt,
     EpochsOpt,
     ResumeOpt,
@@ -101,14 +102,14 @@ def train_classifier_command(
     ] = Path("configs/classifier.toml"),
     seed: Annotated[
         int | None, typer.Option("--seed", help="Random seed (default: the config's).",
-                                 show_default=False)
+                                 min=0, max=SEED_MAX, show_default=False)
     ] = None,
     epochs: Annotated[
         int | None, typer.Option("--epochs", help="Training epochs (default: the config's).",
                                  min=1, show_default=False)
     ] = None,
     studios: Annotated[
-        bool, typer.Option("--studios/--no-studios",
+        bool, typer.Option("--studios/--no-studios", metavar="",
                            help="Also train on each data set alone and test on the other "
                                 "(leave one studio out) for the card.")
     ] = True,
@@ -147,10 +148,11 @@ def train_classifier_command(
     model = train_classifier(cfg, progress=True, data=data)
     if studios and len(cfg.datasets) == 2:
         console.print("leave one studio out: training on each data set alone ...")
-        loso, models = leave_one_studio_out(cfg, data)
+        loso, models = leave_one_studio_out(cfg, data, progress=True)
         model.metrics["leave_one_studio_out"] = loso
         model.metrics["studio_proxy"] = studio_proxy(models[cfg.datasets[0]], tracks,
                                                      cfg.datasets[1])
+    console.print("measuring the unsure rates of the held-out clips ...")
     model.metrics["unsure"] = unsure_rates(model, tracks)
     model.metrics["train_seconds"] = time.perf_counter() - start
     path = model.save(out / "emotion-classifier.pt")

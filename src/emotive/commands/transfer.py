@@ -21,6 +21,7 @@ from emotive.commands.options import (
     PreviewOpt,
     RolesOpt,
     UnitOpt,
+    flag,
     out_option,
     read_input,
 )
@@ -54,7 +55,8 @@ def open_index(index: Path | None, build: bool, force: bool) -> tuple[MARDatabas
 
 def transfer(
     input: Annotated[
-        Path | None, typer.Argument(help="BVH clip to translate.", show_default=False)
+        Path | None, typer.Argument(help="Clip to translate: .bvh, .glb/.gltf or .fbx.",
+                                    show_default=False)
     ] = None,
     style: Annotated[
         str | None,
@@ -91,11 +93,11 @@ def transfer(
                      "first use).", show_default=False),
     ] = None,
     build_index: Annotated[
-        bool, typer.Option("--build-index", help="Build the index (if missing) and exit "
-                           "when no input is given.")
+        bool, typer.Option("--build-index", metavar="", help="Build the index (if missing) "
+                     "and exit when no input is given.")
     ] = False,
     force: Annotated[
-        bool, typer.Option("--force", help="Rebuild the index even if it exists.")
+        bool, flag("force", "Rebuild the index even if it exists.")
     ] = False,
 ) -> None:
     """Translate a clip into another style, frame by frame.

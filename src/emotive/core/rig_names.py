@@ -40,10 +40,23 @@ class Family:
     Attributes:
         roles: role -> joint names that can play it, best first (``"X/end"`` allowed).
         known: the family's other joint names (no role).
+        namespace: pattern of the namespace the family's exporter puts before every joint
+            name (Mixamo's ``mixamorig:``, ``mixamorig1:``), matched in full against each
+            namespace of a name; it tells apart families whose names coincide (a Mixamo rig
+            without ``Spine2`` and fingers has only CMU's names).
     """
 
     roles: dict[str, tuple[str, ...]]
     known: tuple[str, ...] = ()
+    namespace: str | None = None
+
+    def namespaced(self, names: tuple[str, ...]) -> int:
+        """How many of ``names`` carry the family's namespace (``"Armature|mixamorig:Hips"``)."""
+        if self.namespace is None:
+            return 0
+        pattern = re.compile(self.namespace, re.IGNORECASE)
+        return sum(any(pattern.fullmatch(part) for part in re.split(r"[:|]", n)[:-1])
+                   for n in names)
 
     def vocabulary(self) -> frozenset[str]:
         """Every normalized joint name of the family."""
@@ -107,6 +120,7 @@ MIXAMO_FAMILY = Family(
     }, "Left", "Right"),
     ("HeadTop_End", *_both(("{s}Shoulder",), "Left", "Right"),
      *_both(tuple(f"{{s}}Hand{f}{k}" for f in _FINGERS for k in (1, 2, 3, 4)), "Left", "Right")),
+    namespace=r"mixamorig\d*",
 )
 
 UNREAL_FAMILY = Family(

@@ -185,12 +185,16 @@ def _family_names(name: str) -> tuple[frozenset[str], frozenset[str]]:
     return family.vocabulary(), frozenset(spelled | set(family.known))
 
 
-def _score(names: _Names, family: str, index: dict[str, int]) -> tuple[int, int, int]:
-    """How well a family fits: roles found, joints named in its vocabulary, exact spellings."""
+def _score(names: _Names, family: str, index: dict[str, int]) -> tuple[int, int, int, int]:
+    """How well a family fits, compared in order.
+
+    Roles found, joints named in its vocabulary, joints in its namespace
+    (:attr:`~emotive.core.rig_names.Family.namespace`), exact spellings.
+    """
     vocabulary, spelled = _family_names(family)
     hits = sum(normalize(b) in vocabulary for b in names.bases)
     exact = sum(b in spelled for b in names.bases)
-    return len(index), hits, exact
+    return len(index), hits, FAMILIES[family].namespaced(names.skeleton.names), exact
 
 
 def point_name(skeleton: Skeleton, index: int) -> str:

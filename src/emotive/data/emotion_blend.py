@@ -104,9 +104,12 @@ class Emotion:
         """An emotion from ``"happy=0.7,neutral=0.3"`` or a single name ``"sad"``.
 
         ``:`` may stand for ``=``; names are case-insensitive and ``normal`` means ``neutral``.
+        A name without a weight stands for weight 1 only when it is alone: in a blend every
+        label needs its weight (``"happy=0.7,sad"`` is an error, not ``sad=1``).
 
         Raises:
-            EmotionError: empty or malformed text, or the errors of :meth:`from_dict`.
+            EmotionError: empty or malformed text, a blend entry without a weight, or the
+                errors of :meth:`from_dict`.
         """
         if not text or not text.strip():
             raise EmotionError(
@@ -119,6 +122,11 @@ class Emotion:
             if not item:
                 raise EmotionError(f"empty entry in emotion {text!r}: remove the extra comma")
             sep = "=" if "=" in item else ":" if ":" in item else None
+            if sep is None and "," in text:
+                raise EmotionError(
+                    f"entry {item!r} of the blend {text!r} has no weight: give every label of a "
+                    f"blend one, e.g. '{item}=0.3', or give a single name alone"
+                )
             name, value = (item.split(sep, 1) if sep else (item, "1"))
             name, value = name.strip(), value.strip()
             if not name:

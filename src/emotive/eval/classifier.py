@@ -4,8 +4,12 @@ A small temporal convolution network reads a window of per-frame motion features
 probabilities over emotion labels. It is trained on real motion only (the train split of the
 Bandai Namco data), never on generated motion, so it can judge any generator.
 
-Per-frame features (:func:`frame_features`, ``F`` = 152 columns), computed from the positions of
-the 21 joint roles (:data:`emotive.core.roles.ROLES`), so any rig with a role map works:
+Per-frame features (:func:`frame_features`, ``F`` = 152 columns), computed from the world
+positions in metres of the 21 joint roles (:data:`emotive.core.roles.ROLES`), so any rig with a
+role map works. Every role is read at a joint, never at an end site (:func:`judge_joints`: hand
+tips at the wrists, toes at the toe joint below the ankle), so the same joint motion gives the
+same features on rigs that differ in names, units, rotation orders, rest poses, end-site lengths
+and extra helper bones:
 
 * the pose in the body frame: role positions minus the root's ground position, turned so the
   body faces +Z, divided by the leg length (63);
@@ -67,6 +71,7 @@ from torch import nn
 
 from emotive.core.motion import Motion
 from emotive.core.roles import ROLES, JointRoles, resolve_roles
+from emotive.core.skeleton import Skeleton
 from emotive.data.emotion import DEFAULT_LABELS, check_labels
 from emotive.errors import ConfigError, EmotiveError
 from emotive.eval.classifier_augment import AugmentConfig
@@ -187,10 +192,55 @@ class ClassifierConfig:
 ROLE_POINTS = JointRoles({r: k for k, r in enumerate(ROLES)}, {r: r for r in ROLES}, "roles")
 
 
+#: Hand tips the classifier reads at their wrist.
+HAND_TIPS: dict[str, str] = {"l_handtip": "l_wrist", "r_handtip": "r_wrist"}
+#: Toes the classifier reads at the first joint below their ankle.
+TOES: dict[str, str] = {"l_toe": "l_ankle", "r_toe": "r_ankle"}
+
+
+def judge_joints(skeleton: Skeleton, roles: JointRoles) -> np.ndarray:
+    """``(21,)`` joint indices the classifier reads for the roles, in :data:`ROLES` order.
+
+    Only joints are read, never end sites, so neither the lengths a rig gives its end sites
+    nor its finger, twist and helper bones change what the classifier sees:
+
+    * a hand tip is read at its wrist (rigs end their hands at a wrist end site, a knuckle
+      or a finger tip);
+    * a toe is read at the toe joint below the ankle on the way to the rig's toe point (the
+      ball of the foot: Bandai ``Toes``, Mixamo and CMU ``ToeBase``, Unreal ``ball``, SMPL
+      ``foot``), at the ankle when the rig has none;
+    * any other role mapped to an end site is read at that end site's joint.
+
+    Args:
+        skeleton: the rig (``J`` joints, ``E`` end sites).
+        roles: its resolved roles (indices into the ``J + E`` joint-then-end-site points).
+
+    Returns:
+        Indices into the rig's ``J`` joints.
+    """
+    n = skeleton.num_joints
+
+    def joint_of(point: int) -> int:
+        return point if point < n else int(skeleton.end_site_parents[point - n])
+
+    out = []
+    for role in ROLES:
+        joint = joint_of(roles.index[HAND_TIPS.get(role, role)])
+        if role in TOES:
+            ankle = joint_of(roles.index[TOES[role]])
+            path = skeleton.between(ankle, joint) if joint != ankle else None
+            joint = [*path, joint][0] if path is not None else ankle
+        out.append(joint)
+    return np.array(out, dtype=np.int64)
+
+
 def role_track(motion: Motion, role_map: str | None = None) -> np.ndarray:
-    """``(T, J, 3)`` world positions of the 21 joint roles of a clip, metres, Y up."""
+    """``(T, 21, 3)`` world positions of the classifier's role joints, metres, Y up.
+
+    The joints are those of :func:`judge_joints`, in :data:`ROLES` order.
+    """
     roles = resolve_roles(motion.skeleton, role_map)
-    return motion.positions_with_end_sites()[:, roles.indices()]
+    return motion.global_positions()[:, judge_joints(motion.skeleton, roles)]
 
 
 def frame_features(positions: np.ndarray, roles: JointRoles, fps: float,

@@ -153,8 +153,10 @@ def classifier_card(model: EmotionClassifier, clips: dict[str, Sequence[str]]) -
         "# Perceived-emotion classifier",
         "",
         f"A {cfg.architecture} network that reads windows of 0.8 s (about one stride) or more "
-        "of any humanoid clip (positions of the 21 joint roles in the body frame, their "
-        f"velocities, the 18 affective features and 8 movement features, at {cfg.fps:g} fps) "
+        "of any humanoid clip (positions of the 21 joint roles in the body frame, read at "
+        "joints only: hand tips at the wrists, toes at the toe joint below the ankle, so end "
+        "sites and helper bones do not matter; their velocities, the 18 affective features "
+        f"and 8 movement features, at {cfg.fps:g} fps) "
         f"and gives calibrated probabilities over {', '.join(cfg.labels)}, a valence/arousal "
         "estimate, and an explicit *unsure* when the motion is unlike its training data. It "
         "stands in for human observers when the project's generators are evaluated; it was "
@@ -215,8 +217,10 @@ def classifier_card(model: EmotionClassifier, clips: dict[str, Sequence[str]]) -
     if "unsure" in m:
         out += _unsure(m["unsure"], cfg.unsure_quantile)
     if "train_seconds" in m:
-        out += [f"Training (features, this model and the two leave-one-studio-out models) "
-                f"took {m['train_seconds'] / 60:.1f} min on the CPU that wrote this card.", ""]
+        trained = ("features, this model and the two leave-one-studio-out models"
+                   if "leave_one_studio_out" in m else "features and this model")
+        out += [f"Training ({trained}) took {m['train_seconds'] / 60:.1f} min on the CPU that "
+                "wrote this card.", ""]
     if m.get("notes"):
         out += ["## Notes on this file", "", *(f"- {note}" for note in m["notes"]), ""]
     out += [

@@ -37,14 +37,21 @@ from __future__ import annotations
 import hashlib
 import math
 import tomllib
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 import torch
 from rich.console import Console
-from rich.progress import track
+from rich.progress import (
+    BarColumn,
+    MofNCompleteColumn,
+    Progress,
+    TextColumn,
+    TimeElapsedColumn,
+    track,
+)
 from torch import nn
 
 from emotive.data.circumplex import VALENCE_AROUSAL
@@ -125,8 +132,8 @@ class ClipFeatures:
 
 def _tracks_path(dataset: str) -> Path:
     digest = hashlib.sha256(preprocessed_path(dataset).name.encode())
-    for module in ("roles", "motion", "skeleton"):
-        digest.update((Path(__file__).parents[1] / "core" / f"{module}.py").read_bytes())
+    for module in ("core/roles", "core/motion", "core/skeleton", "eval/classifier"):
+        digest.update((Path(__file__).parents[1] / f"{module}.py").read_bytes())
     name = f"classifier-tracks-{dataset}-{digest.hexdigest()[:16]}.npz"
     return emotive_home() / "preprocessed" / name
 
@@ -370,13 +377,15 @@ def _calibrate(model: EmotionClassifier, items: Sequence[ClipFeatures]) -> None:
 
 
 def train_classifier(config: ClassifierConfig | None = None, progress: bool = False,
-                     data: dict[str, list[ClipFeatures]] | None = None) -> EmotionClassifier:
+                     data: dict[str, list[ClipFeatures]] | None = None,
+                     description: str = "classifier") -> EmotionClassifier:
     """Train the classifier on real data, calibrate it and record its held-out results.
 
     Args:
         config: settings (default :class:`ClassifierConfig`).
-        progress: progress bars on stderr.
+        progress: progress bars (epochs and batches) and one line per epoch on stderr.
         data: features by split, when already made (:func:`split_features`).
+        description: what is trained, for the progress output.
 
     Returns:
         The classifier with ``metrics["val"]``, ``metrics["test"]`` and ``metrics["test_by_
@@ -402,28 +411,25 @@ def train_classifier(config: ClassifierConfig | None = None, progress: bool = Fa
                            weight_decay=config.weight_decay)
     best: float | None = None
     best_state = None
-    epochs = track(range(config.epochs), description="training classifier",
-                   disable=not progress, console=Console(stderr=True), transient=True)
-    for _ in epochs:
-        net.train()
-        for _ in range(config.steps_per_epoch):
-            x, y, style, va = sampler.draw(rng, config.batch_size)
-            _, logits, va_out, style_out = net.heads(torch.from_numpy((x - mean) / std))
-            y, style = torch.from_numpy(y), torch.from_numpy(style)
-            loss = config.valence_arousal_weight * ((va_out - torch.from_numpy(va)) ** 2).mean()
-            if (y >= 0).any():
-                loss = loss + label_loss(logits, y)
-            if (style >= 0).any():
-                loss = loss + config.style_weight * style_loss(style_out, style)
-            opt.zero_grad()
-            loss.backward()
-            opt.step()
-        net.eval()
-        score = _score(measure(model, data["val"])) if data["val"] else 0.0
-        # Later epochs win ties (and, without validation clips, the last epoch is kept).
-        if best is None or score >= best:
-            best = score
-            best_state = {k: v.clone() for k, v in net.state_dict().items()}
+    bars = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                    TimeElapsedColumn(), TextColumn("{task.fields[info]}"),
+                    console=Console(stderr=True), disable=not progress, transient=True)
+    with bars:
+        epochs_task = bars.add_task(f"{description}: epochs", total=config.epochs, info="")
+        batch_task = bars.add_task("batches", total=config.steps_per_epoch, info="")
+        for epoch in range(config.epochs):
+            bars.reset(batch_task, total=config.steps_per_epoch)
+            score = _train_epoch(model, sampler, data["val"], opt, (label_loss, style_loss), rng,
+                                 lambda: bars.advance(batch_task))
+            # Later epochs win ties (and, without validation clips, the last epoch is kept).
+            improved = best is None or score >= best
+            if improved:
+                best = score
+                best_state = {k: v.clone() for k, v in net.state_dict().items()}
+            summary = f"validation score {score:.3f}" + ("  (best)" if improved else "")
+            bars.update(epochs_task, advance=1, info=summary)
+            if progress:
+                bars.console.print(f"{description}: epoch {epoch + 1}/{config.epochs}: {summary}")
     assert best_state is not None
     net.load_state_dict(best_state)
     net.eval()
@@ -436,21 +442,48 @@ def train_classifier(config: ClassifierConfig | None = None, progress: bool = Fa
     return model
 
 
+def _train_epoch(model: EmotionClassifier, sampler: _Sampler, val: Sequence[ClipFeatures],
+                 opt: torch.optim.Optimizer, losses: tuple[nn.Module, nn.Module],
+                 rng: np.random.Generator, batch_done: Callable[[], None]) -> float:
+    """One epoch of updates, then the validation score (:func:`_score`; 0 without clips)."""
+    config, net, mean, std = model.config, model.net, model.mean, model.std
+    label_loss, style_loss = losses
+    net.train()
+    for _ in range(config.steps_per_epoch):
+        x, y, style, va = sampler.draw(rng, config.batch_size)
+        _, logits, va_out, style_out = net.heads(torch.from_numpy((x - mean) / std))
+        y, style = torch.from_numpy(y), torch.from_numpy(style)
+        loss = config.valence_arousal_weight * ((va_out - torch.from_numpy(va)) ** 2).mean()
+        if (y >= 0).any():
+            loss = loss + label_loss(logits, y)
+        if (style >= 0).any():
+            loss = loss + config.style_weight * style_loss(style_out, style)
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+        batch_done()
+    net.eval()
+    return _score(measure(model, val)) if val else 0.0
+
+
 def train_on_one_studio(config: ClassifierConfig, data: dict[str, list[ClipFeatures]],
-                        dataset: str) -> EmotionClassifier:
+                        dataset: str, progress: bool = False) -> EmotionClassifier:
     """The recipe of ``config`` trained on the clips of one data set of ``data`` only."""
     cfg = replace(config, datasets=(dataset,))
-    return train_classifier(cfg, data={s: [i for i in v if i.dataset == dataset]
-                                       for s, v in data.items()})
+    return train_classifier(cfg, progress, data={s: [i for i in v if i.dataset == dataset]
+                                                 for s, v in data.items()},
+                            description=f"{dataset} alone")
 
 
-def leave_one_studio_out(config: ClassifierConfig, data: dict[str, list[ClipFeatures]]
+def leave_one_studio_out(config: ClassifierConfig, data: dict[str, list[ClipFeatures]],
+                         progress: bool = False
                          ) -> tuple[dict[str, dict], dict[str, EmotionClassifier]]:
     """Train on one data set, measure on every clip of the other's shared styles.
 
     Args:
         config: the recipe (its two ``datasets`` are the studios).
         data: features of both by split (:func:`split_features`).
+        progress: progress output of each training on stderr.
 
     Returns:
         ``{"train-on-<a>": {"trained_on", "tested_on", "result" (:func:`measure` over the
@@ -460,7 +493,7 @@ def leave_one_studio_out(config: ClassifierConfig, data: dict[str, list[ClipFeat
     """
     out, models = {}, {}
     for trained, tested in (config.datasets, config.datasets[::-1]):
-        model = models[trained] = train_on_one_studio(config, data, trained)
+        model = models[trained] = train_on_one_studio(config, data, trained, progress)
         other = [i for s in ("train", "val", "test") for i in data[s]
                  if i.dataset == tested and i.style in SHARED_STYLE_OF and not i.variant]
         out[f"train-on-{trained}"] = {

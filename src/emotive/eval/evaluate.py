@@ -31,7 +31,7 @@ from rich.console import Console
 from rich.progress import track
 
 from emotive.data.clips import load_clips
-from emotive.data.emotion import ALL_LABELS, DEFAULT_LABELS, Emotion, EmotionSchedule
+from emotive.data.emotion import DEFAULT_LABELS, Emotion, EmotionSchedule
 from emotive.data.splits import split_clips
 from emotive.errors import EmotiveError
 from emotive.eval import suites
@@ -44,7 +44,7 @@ from emotive.eval.sources import (
     requests_for,
     standard_requests,
 )
-from emotive.eval.table1 import ZeroVelocity, table1
+from emotive.eval.table1 import ZeroVelocity
 from emotive.models.api import GenerationRequest, Generator, Predictor, TransferModel
 from emotive.models.registry import REGISTRY, get_model
 
@@ -252,20 +252,7 @@ class Context:
 
 def _table1(ctx: Context) -> dict:
     assert ctx.subject.predictor is not None
-    # Every style is a label here: the four emotions alone leave two test clips long enough
-    # for the paper's 6-second windows.
-    test = split_clips(load_clips("bandai-namco-1", locomotion=True))["test"]
-    rows = {}
-    for fps in (10.0, 30.0):
-        result = table1([ctx.subject.predictor], test, fps=fps, labels=ALL_LABELS)
-        rows[f"{fps:g} fps"] = result
-    return {
-        "markdown": "\n\n".join(f"At {key}:\n\n{result.to_markdown()}"
-                                for key, result in rows.items()),
-        "results": {key: result.to_dict() for key, result in rows.items()},
-        "reference": f"bandai-namco-1 locomotion test clips, all styles ({len(test)} clips; "
-                     "1.8 s primer, 4.2 s predicted, a window every second)",
-    }
+    return suites.table1_suite(ctx.subject.predictor)
 
 
 def _speed(ctx: Context) -> dict:

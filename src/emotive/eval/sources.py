@@ -3,9 +3,9 @@
 Every generator of the project, and any folder of BVH files, becomes a list of
 :class:`EvaluatedMotion` here, so the suites have no special cases:
 
-* a folder of BVH files (:func:`read_folder`): the intended emotion of each file comes from a
-  ``labels.json`` in the folder, else from a Bandai Namco style file name
-  (``dataset-N_{content}_{style}_{take}.bvh``);
+* a folder of motion files, BVH, glTF or FBX (:func:`read_folder`): the intended emotion of
+  each file comes from a ``labels.json`` in the folder, else from a Bandai Namco style file
+  name (``dataset-N_{content}_{style}_{take}.bvh``);
 * a generator (:class:`~emotive.models.api.Generator`), asked for the standard requests of
   :func:`standard_requests` (each emotion alone, and emotion transitions, along a figure-8)
   that its capabilities allow (:func:`requests_for`);
@@ -42,7 +42,7 @@ from emotive.core.motion import Motion
 from emotive.data.clips import parse_clip_name
 from emotive.data.emotion import DEFAULT_LABELS, Emotion, EmotionSchedule, canonical_label
 from emotive.errors import EmotionError, EmotiveError, PathError
-from emotive.io.bvh import read_bvh
+from emotive.io.motion_files import READ_SUFFIXES, read_motion
 from emotive.models.api import (
     Capabilities,
     GenerationRequest,
@@ -186,21 +186,25 @@ def _intent(entry: Any, where: str, labels: Sequence[str]) -> tuple[EmotionSched
 
 def read_folder(folder: str | Path, labels: Sequence[str] = DEFAULT_LABELS
                 ) -> list[EvaluatedMotion]:
-    """The BVH files of a folder with their intended emotion (see the module docstring).
+    """The motion files of a folder (BVH, glTF, FBX) with their intended emotion.
+
+    See the module docstring.
 
     Files named after a Bandai Namco style outside ``labels`` are left out (a report names
     them); files with no intended emotion at all are an error.
 
     Raises:
-        SourceError: not a folder, no BVH files, a bad ``labels.json``, or unlabelled files.
-        BVHError: a file that cannot be read.
+        SourceError: not a folder, no motion files, a bad ``labels.json``, or unlabelled files.
+        BVHError: a BVH file that cannot be read.
+        MotionFileError: a glTF or FBX file that cannot be read.
     """
     folder = Path(folder)
     if not folder.is_dir():
-        raise SourceError(f"{folder} is not a folder of BVH files")
-    files = sorted(folder.glob("*.bvh"))
+        raise SourceError(f"{folder} is not a folder of motion files")
+    files = sorted(f for f in folder.iterdir()
+                   if f.suffix.lower() in READ_SUFFIXES and f.is_file())
     if not files:
-        raise SourceError(f"{folder} holds no .bvh files")
+        raise SourceError(f"{folder} holds no .bvh files (nor {', '.join(READ_SUFFIXES[1:])})")
     table: dict[str, Any] = {}
     if (folder / LABELS_FILE).is_file():
         try:
@@ -226,7 +230,7 @@ def read_folder(folder: str | Path, labels: Sequence[str] = DEFAULT_LABELS
         else:
             unlabelled.append(file.name)
             continue
-        motion = read_bvh(file)
+        motion = read_motion(file)
         intended = schedule.sample(motion.fps, num_frames=motion.num_frames)
         out.append(EvaluatedMotion(file.name, motion, intended, labels, path))
     if unlabelled:

@@ -25,6 +25,12 @@ plots.
 
 Real reference statistics come from :func:`real_reference` (real clips of the labels).
 
+One suite judges a predictor instead of motions: ``table1`` (:func:`table1_suite`), the main
+paper's Table 1 protocol (:func:`emotive.eval.table1.table1`) on the locomotion test clips of
+each data set and of both together, the predictor beside the baselines of
+:func:`table1_baselines`, at 10 and 30 fps, with the pose error by horizon at 10 fps
+(:mod:`emotive.eval.horizon`).
+
 Legend: ``T`` frames, ``J`` joints, ``C`` labels, ``K`` windows.
 """
 
@@ -38,11 +44,15 @@ import numpy as np
 from emotive.core.motion import Motion
 from emotive.core.roles import resolve_roles
 from emotive.data.clips import load_clips
+from emotive.data.emotion import ALL_LABELS
 from emotive.data.splits import split_clips
+from emotive.errors import DataError
 from emotive.eval import distributions, feet, path_following, smoothness, stability
 from emotive.eval.classifier import EmotionClassifier, frame_features
+from emotive.eval.horizon import by_horizon
 from emotive.eval.sources import EvaluatedMotion
 from emotive.eval.stats import StatsInputError, anderson_darling_ksamp
+from emotive.eval.table1 import Predictor, Table1Result, ZeroVelocity, merge_results, table1
 
 
 def real_test_metrics(classifier: EmotionClassifier) -> dict:
@@ -363,3 +373,151 @@ def affect_suite(items: Sequence[EvaluatedMotion], reference: RealReference | No
             row["diversity"] = distributions.diversity(np.stack([f.mean(0) for _, f in members]))
         rows.append(row)
     return {"labels": rows, "reference": reference.source if reference else None}
+
+
+#: The data sets whose locomotion test clips the ``table1`` suite evaluates, by their name in
+#: its tables.
+TABLE1_SETS: dict[str, str] = {"dataset 1": "bandai-namco-1",
+                               "dataset 2": "bandai-namco-2-locomotion"}
+#: Name of the pooled windows of every data set in the ``table1`` suite's tables.
+BOTH_SETS = "both"
+#: Frame rates of the ``table1`` suite, and the one of its errors by horizon.
+TABLE1_RATES: tuple[float, ...] = (10.0, 30.0)
+HORIZON_FPS = 10.0
+
+
+def table1_baselines(predictor: Predictor) -> list[Predictor]:
+    """The predictors a Table 1 subject is shown beside: QuaterNet and zero velocity.
+
+    The paper's baseline (the registry's ``quaternet``) and holding the last frame
+    (:class:`~emotive.eval.table1.ZeroVelocity`), less any named as ``predictor`` is.
+    """
+    # Deferred: the registry's loaders import the models, which the motion suites do not need.
+    from emotive.models.registry import get_model  # noqa: PLC0415
+
+    baselines = [get_model("quaternet").load("predictor"), ZeroVelocity()]
+    return [b for b in baselines if b.name != predictor.name]
+
+
+def table1_test_sets() -> tuple[dict[str, list], dict[str, str]]:
+    """The locomotion test clips of each of :data:`TABLE1_SETS` that is installed.
+
+    Returns:
+        ``(set name -> clips, set name -> why it is missing)``.
+
+    Raises:
+        DataError: none of the data sets is installed.
+    """
+    sets, missing = {}, {}
+    for name, dataset in TABLE1_SETS.items():
+        try:
+            sets[name] = split_clips(load_clips(dataset, locomotion=True))["test"]
+        except DataError as exc:
+            missing[name] = str(exc)
+    if not sets:
+        raise DataError(f"the table1 suite needs the test clips of "
+                        f"{', '.join(TABLE1_SETS.values())}: {'; '.join(missing.values())}")
+    return sets, missing
+
+
+def table1_runs(predictors: Sequence[Predictor], sets: dict[str, list], fps: float
+                ) -> dict[str, Table1Result]:
+    """:func:`~emotive.eval.table1.table1` on each set of clips, and on all pooled.
+
+    Every style is a label (:data:`~emotive.data.emotion.ALL_LABELS`): the four emotions alone
+    leave two dataset-1 test clips long enough for the paper's 6-second windows.
+
+    Returns:
+        Set name -> result, then :data:`BOTH_SETS` -> the windows of every set pooled
+        (:func:`~emotive.eval.table1.merge_results`) when there are several.
+    """
+    runs = {name: table1(predictors, clips, fps=fps, labels=ALL_LABELS)
+            for name, clips in sets.items()}
+    if len(runs) > 1:
+        runs[BOTH_SETS] = merge_results(list(runs.values()))
+    return runs
+
+
+def _table1_markdown(runs: dict[str, Table1Result]) -> str:
+    """One row per predictor, one column per set: pose error ± std, rotation error."""
+    first = next(iter(runs.values()))
+    header = ["predictor", *(f"{name} ({r.windows} windows)" for name, r in runs.items())]
+    lines = ["| " + " | ".join(header) + " |", "| --- |" + " --- |" * len(runs)]
+    for s in first.scores:
+        cells = [f"{o.pose:.3f} ± {o.pose_std:.3f}, {o.rotation:.1f}°"
+                 for o in (r[s.name].overall for r in runs.values())]
+        lines.append(f"| {s.name} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def _frame_ranges(frames: np.ndarray) -> str:
+    """Sorted frame numbers as runs, e.g. ``3-7, 13, 15-17``."""
+    runs: list[list[int]] = []
+    for f in frames.tolist():
+        if runs and f == runs[-1][-1] + 1:
+            runs[-1].append(f)
+        else:
+            runs.append([f])
+    return ", ".join(f"{r[0]}-{r[-1]}" if len(r) > 1 else f"{r[0]}" for r in runs)
+
+
+def _horizon_verdict(run: Table1Result, name: str) -> str:
+    """At which of every predicted frame ``name`` beats zero velocity, in words."""
+    zero = ZeroVelocity().name
+    if name == zero or zero not in {s.name for s in run.scores}:
+        return ""
+    every = by_horizon(run, range(1, run.predicted_frames + 1))
+    wins = every.beats(name, zero)
+    if not len(wins):
+        return f"{name} beats zero velocity at no horizon (of frames 1-{run.predicted_frames})."
+    return (f"{name} beats zero velocity at {len(wins)} of the {run.predicted_frames} horizons "
+            f"(frames ahead {_frame_ranges(wins)}).")
+
+
+def table1_suite(predictor: Predictor, rates: Sequence[float] = TABLE1_RATES,
+                 horizon_fps: float | None = HORIZON_FPS) -> dict:
+    """The ``table1`` suite: ``predictor`` beside its baselines, per data set and pooled.
+
+    Args:
+        predictor: the model judged (named in the tables by its ``name``).
+        rates: frame rates of the protocol (1.8 s primer, 4.2 s predicted at each).
+        horizon_fps: the rate, one of ``rates``, of the errors by horizon; ``None``: none.
+
+    Returns:
+        JSON-ready: ``markdown`` (the tables), ``results`` (rate -> set -> the
+        :meth:`~emotive.eval.table1.Table1Result.to_dict` of its run), ``horizon`` (set -> the
+        :meth:`~emotive.eval.horizon.HorizonErrors.to_dict` at ``horizon_fps``), ``reference``
+        (what was evaluated) and ``unavailable`` (set -> why it is missing).
+
+    Raises:
+        DataError: neither data set is installed.
+        ValueError: ``horizon_fps`` is not one of ``rates``.
+    """
+    if horizon_fps is not None and horizon_fps not in rates:
+        raise ValueError(f"horizon_fps={horizon_fps} is not one of the rates {list(rates)}")
+    sets, missing = table1_test_sets()
+    predictors = [predictor, *table1_baselines(predictor)]
+    by_rate = {f"{fps:g} fps": table1_runs(predictors, sets, fps) for fps in rates}
+    parts = ["Pose error relative to the bounding-box diagonal (mean ± standard deviation over "
+             "windows) and geodesic rotation error, on the locomotion test clips of each data "
+             "set, all styles; 1.8 s primer, 4.2 s predicted, a window every second."]
+    parts += [f"At {key}:\n\n{_table1_markdown(runs)}" for key, runs in by_rate.items()]
+    horizon = {}
+    if horizon_fps is not None:
+        for name, run in by_rate[f"{horizon_fps:g} fps"].items():
+            errors = by_horizon(run)
+            horizon[name] = errors.to_dict()
+            parts.append(f"Pose error by horizon, {name}, {horizon_fps:g} fps ({run.windows} "
+                         f"windows):\n\n{errors.to_markdown()}\n\n"
+                         f"{_horizon_verdict(run, predictor.name)}".rstrip())
+    parts += [f"{name} is not installed: {why}" for name, why in missing.items()]
+    return {
+        "markdown": "\n\n".join(parts),
+        "results": {key: {name: r.to_dict() for name, r in runs.items()}
+                    for key, runs in by_rate.items()},
+        "horizon": horizon,
+        "reference": "locomotion test clips, all styles: " + ", ".join(
+            f"{name} {TABLE1_SETS[name]} ({len(clips)} clips)" for name, clips in sets.items())
+        + "; 1.8 s primer, 4.2 s predicted, a window every second",
+        "unavailable": missing,
+    }

@@ -68,6 +68,7 @@ __all__ = [
     "PredictorScores",
     "Table1Result",
     "ZeroVelocity",
+    "merge_results",
     "table1",
 ]
 
@@ -163,12 +164,17 @@ class PredictorScores:
         overall: statistics over all windows.
         per_emotion: statistics over the windows of each intended emotion, in label order;
             emotions without windows are absent.
+        pose_by_frame: ``(B, T')`` pose error of every window at each predicted frame (the
+            mean over the body joints, relative to the window's bounding-box diagonal), for
+            errors by horizon (:mod:`emotive.eval.horizon`); its mean over frames is the
+            window's pose error.
     """
 
     name: str
     errors: np.ndarray
     overall: ErrorStats
     per_emotion: dict[str, ErrorStats]
+    pose_by_frame: np.ndarray
 
 
 @dataclass(frozen=True, eq=False)
@@ -457,6 +463,7 @@ def table1(
         raise ValueError("no clips to evaluate: pass held-out clips, e.g. split_clips(...)['test']")
 
     errors: dict[str, list[np.ndarray]] = {p.name: [] for p in models}
+    by_frame: dict[str, list[np.ndarray]] = {p.name: [] for p in models}
     window_clips: list[str] = []
     window_emotions: list[str] = []
     starts_all: list[np.ndarray] = []
@@ -509,6 +516,8 @@ def table1(
                 rotation_error(pred_rot[..., rotated, :], true_rot[..., rotated, :]),
                 euler_angle_error(pred_rot[..., rotated, :], true_rot[..., rotated, :], orders),
             ], axis=-1))
+            by_frame[model.name].append(pose_error(pred_pos[..., body, :], true_pos[..., body, :],
+                                                   root_index=0, reduction="frame"))
         window_clips += [name] * len(starts)
         window_emotions += [emotion_label] * len(starts)
         starts_all.append(starts)
@@ -519,19 +528,73 @@ def table1(
             f"{len(skipped_short)} too short, {len(skipped_label)} with an emotion outside "
             f"{list(labels)}"
         )
-    clip_ids = np.array(window_clips)
-    emotions = np.array(window_emotions)
-    scores = []
-    for model in models:
-        e = np.concatenate(errors[model.name])
-        per_emotion = {
-            label: ErrorStats.of(e[emotions == label], clip_ids[emotions == label])
-            for label in labels if np.any(emotions == label)
-        }
-        scores.append(PredictorScores(model.name, e, ErrorStats.of(e, clip_ids), per_emotion))
+    scores = [_scores(name, np.concatenate(errors[name]), np.concatenate(by_frame[name]),
+                      window_clips, window_emotions, labels) for name in errors]
     return Table1Result(
         scores=tuple(scores), fps=fps, primer_frames=n_primer, predicted_frames=n_pred,
         stride_frames=stride, labels=labels, window_clips=tuple(window_clips),
         window_starts=np.concatenate(starts_all), window_emotions=tuple(window_emotions),
         skipped_short=tuple(skipped_short), skipped_label=tuple(skipped_label),
+    )
+
+
+def _scores(name: str, errors: np.ndarray, pose_by_frame: np.ndarray,
+            window_clips: Sequence[str], window_emotions: Sequence[str],
+            labels: Sequence[str]) -> PredictorScores:
+    """A predictor's :class:`PredictorScores` from its ``(B, 3)`` and ``(B, T')`` errors."""
+    clip_ids, emotions = np.array(window_clips), np.array(window_emotions)
+    per_emotion = {
+        label: ErrorStats.of(errors[emotions == label], clip_ids[emotions == label])
+        for label in labels if np.any(emotions == label)
+    }
+    return PredictorScores(name, errors, ErrorStats.of(errors, clip_ids), per_emotion,
+                           pose_by_frame)
+
+
+def merge_results(results: Sequence[Table1Result]) -> Table1Result:
+    """Several :func:`table1` runs as one: their windows pooled, each weighing the same.
+
+    The statistics of the merged result are those of every window of every run, as if
+    :func:`table1` had been given all their clips at once (e.g. the test clips of two data
+    sets evaluated apart, then together).
+
+    Args:
+        results: runs with the same predictors (names, in order), rate, frame counts, stride
+            and labels.
+
+    Returns:
+        One :class:`Table1Result` over all their windows, in the order given.
+
+    Raises:
+        ValueError: no results, or runs that differ in predictors or protocol.
+    """
+    results = list(results)
+    if not results:
+        raise ValueError("no results to merge: pass at least one table1(...) result")
+    first = results[0]
+
+    def protocol(r: Table1Result) -> tuple:
+        return (tuple(s.name for s in r.scores), r.fps, r.primer_frames, r.predicted_frames,
+                r.stride_frames, r.labels)
+
+    for r in results[1:]:
+        if protocol(r) != protocol(first):
+            raise ValueError(f"cannot merge table1 results with different predictors or "
+                             f"protocol: {protocol(first)} and {protocol(r)}")
+    clips = tuple(c for r in results for c in r.window_clips)
+    emotions = tuple(e for r in results for e in r.window_emotions)
+    scores = [
+        _scores(s.name, np.concatenate([r.scores[k].errors for r in results]),
+                np.concatenate([r.scores[k].pose_by_frame for r in results]),
+                clips, emotions, first.labels)
+        for k, s in enumerate(first.scores)
+    ]
+    return Table1Result(
+        scores=tuple(scores), fps=first.fps, primer_frames=first.primer_frames,
+        predicted_frames=first.predicted_frames, stride_frames=first.stride_frames,
+        labels=first.labels, window_clips=clips,
+        window_starts=np.concatenate([r.window_starts for r in results]),
+        window_emotions=emotions,
+        skipped_short=tuple(c for r in results for c in r.skipped_short),
+        skipped_label=tuple(c for r in results for c in r.skipped_label),
     )

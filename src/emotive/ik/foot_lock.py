@@ -311,6 +311,26 @@ def _two_bone(rig: LegRig, rotations: np.ndarray, points: np.ndarray, shift: np.
     return rotations, points
 
 
+def move_ankles(rig: LegRig, rotations: np.ndarray, points: np.ndarray, shift: np.ndarray,
+                yaw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each ankle moved and each foot turned by the analytic two-bone solve of step 3.
+
+    The solve :func:`lock_feet` applies, for callers that compute their own corrections
+    (a whole clip at once: the frames stand in for the agents).
+
+    Args:
+        rig: the legs (:func:`leg_rig`).
+        rotations: ``(B, J, 4)`` local rotations.
+        points: ``(B, P, 3)`` their world positions, joints then end sites.
+        shift: ``(B, 2, 3)`` move of each ankle (left, right), metres.
+        yaw: ``(B, 2)`` turn of each foot about the vertical through its ankle, radians.
+
+    Returns:
+        The rotations ``(B, J, 4)`` and points ``(B, P, 3)``; the hips stay where they are.
+    """
+    return _two_bone(rig, rotations, points, shift, yaw)
+
+
 def lock_feet(rig: LegRig, state: LockState, rotations: np.ndarray, points: np.ndarray,
               body_speed: np.ndarray, fps: float, settings: LockSettings | None = None
               ) -> tuple[np.ndarray, np.ndarray, LockState]:

@@ -53,6 +53,11 @@ def output_error(path: str | os.PathLike, exc: OSError) -> OutputError:
     """
     problem, fix = _REASONS.get(exc.errno, ("the system refused", "check the folder or choose "
                                             "another"))
+    path = Path(path)
+    if exc.errno == errno.ENOENT and (path.is_dir() or path.parent.is_dir()):
+        # /proc and /sys answer "no such file" to a new file in a folder that exists.
+        problem, fix = ("the folder takes no new files (a virtual file system such as /proc)",
+                        "choose a folder on a disk")
     detail = exc.strerror or str(exc) or type(exc).__name__
     return OutputError(f"cannot write {path}: {problem} ({detail}); {fix}")
 

@@ -1,7 +1,8 @@
 """Retargeting: any humanoid clip played on any humanoid rig (issue 23).
 
 * :mod:`~emotive.retarget.retarget`: :func:`retarget`, rest poses aligned per bone, the
-  target's bone lengths, root motion scaled by leg length, planted feet kept by IK.
+  target's bone lengths, root motion scaled by leg length, planted feet kept by a two-bone
+  leg solve.
 * :mod:`~emotive.retarget.rest`: rest poses described by role bones.
 * :mod:`~emotive.retarget.feet`: the ground under a clip and how much its feet slide.
 * :mod:`~emotive.retarget.templates`: any rig rebuilt standing in a T- or A-pose, with other

@@ -13,6 +13,7 @@ from emotive.core.motion import Motion
 from emotive.core.roles import JointRoles, resolve_roles
 from emotive.features.contacts import FOOT_ROLES, ground_heights
 from emotive.ik import resolve_chains, solve_chains
+from emotive.ik.foot_lock import leg_rig, move_ankles
 from emotive.transforms.np_rotations import quaternion_apply, quaternion_invert
 
 RoleMap = str | Path | dict[str, str] | None
@@ -116,18 +117,29 @@ def _planted_targets(world: np.ndarray, source: np.ndarray, contact: np.ndarray,
     return world + delta
 
 
+def _yaw(heel: np.ndarray, toe: np.ndarray) -> np.ndarray:
+    """``(...)`` world heading (radians, 0 facing +Z) of heel -> toe, ``(..., 3)`` points."""
+    d = toe - heel
+    return np.arctan2(d[..., 0], d[..., 2])
+
+
 def plant_feet(motion: Motion, source_points: np.ndarray, source_roles: JointRoles,
                contacts: np.ndarray, scale: float, role_map: RoleMap = None,
                blend: int = 4) -> Motion:
-    """Feet planted in the source kept planted on the target, by IK on the leg chains.
+    """Feet planted in the source kept planted on the target.
 
     While a source foot touches the ground, the target's heel and toe follow the source's
     heel and toe horizontally, scaled like the root (so a planted source foot gives a
-    planted target foot, and the little a real foot rolls is kept); the leg chains are
-    re-solved from the clip's own pose (:func:`emotive.ik.solve_chains`) in the frames where
-    that moves a foot by more than :data:`MOVED` metres, and every other frame is kept as it
-    is (a rig whose feet already follow the source's, such as the source's own, is left
-    untouched).
+    planted target foot, and the little a real foot rolls is kept); the correction fades in
+    and out over ``blend`` frames. On rigs whose hip, knee and ankle are parent and child,
+    each leg is solved for all frames at once by the analytic two-bone solve of the foot lock
+    (:func:`emotive.ik.foot_lock.move_ankles`): the heel lands exactly on its target
+    horizontally (an ankle the straight leg cannot reach is lifted until it can), the foot
+    turns about the vertical so that its toe points at the toe's target, and the knee stays
+    in its bending plane. Other rigs re-solve the leg chains by damped least squares
+    (:func:`emotive.ik.solve_chains`) in the frames where a foot must move by more than
+    :data:`MOVED` metres. A rig whose feet already follow the source's (the source's own)
+    is left untouched.
 
     Args:
         motion: the retargeted clip, ``T`` frames.
@@ -139,8 +151,39 @@ def plant_feet(motion: Motion, source_points: np.ndarray, source_roles: JointRol
         blend: frames over which the correction fades in and out.
 
     Returns:
-        The clip with the leg chains re-solved where the feet had to move.
+        The clip with its legs re-posed where the feet had to move.
     """
+    roles = resolve_roles(motion.skeleton, role_map)
+    points = motion.positions_with_end_sites()
+    try:
+        legs = leg_rig(motion.skeleton, roles, points[0])
+    except ValueError:
+        return _plant_by_chains(motion, source_points, source_roles, contacts, scale,
+                                role_map, blend)
+    shift = np.zeros((motion.num_frames, 2, 3))
+    yaw = np.zeros((motion.num_frames, 2))
+    for side, prefix in enumerate(("l", "r")):
+        feet = (f"{prefix}_ankle", f"{prefix}_toe")
+        world = points[:, roles.indices(feet)]
+        source = source_points[:, source_roles.indices(feet)]
+        targets = _planted_targets(world, source, contacts[:, side], scale, blend)
+        shift[:, side] = targets[:, 0] - world[:, 0]
+        turn = _yaw(targets[:, 0], targets[:, 1]) - _yaw(world[:, 0], world[:, 1])
+        flat = np.linalg.norm((targets[:, 1] - targets[:, 0])[:, [0, 2]], axis=-1)
+        yaw[:, side] = np.where(flat > MOVED, np.angle(np.exp(1j * turn)), 0.0)
+    moving = (np.abs(shift).max(axis=(1, 2)) > MOVED) | (np.abs(yaw).max(axis=1) > MOVED)
+    if not moving.any():
+        return motion
+    rotations = motion.rotations.copy()
+    rotations[moving], _ = move_ankles(legs, rotations[moving], points[moving],
+                                       shift[moving], yaw[moving])
+    return motion.replace(rotations=rotations)
+
+
+def _plant_by_chains(motion: Motion, source_points: np.ndarray, source_roles: JointRoles,
+                     contacts: np.ndarray, scale: float, role_map: RoleMap,
+                     blend: int) -> Motion:
+    """:func:`plant_feet` by damped least squares on the leg chains (any leg layout)."""
     chains = resolve_chains(motion.skeleton, motion, role_map, names=LEGS)
     points = motion.positions_with_end_sites()
     rotations = motion.rotations.copy()

@@ -23,10 +23,11 @@ The method, in order:
    :func:`emotive.features.contacts.leg_length`), so speed relative to leg length, stride
    and hip height are kept.
 4. **Feet.** Feet planted in the source (:func:`emotive.features.contacts.foot_contacts`)
-   follow the source's feet on the target, scaled like the root, by IK on the leg chains
-   (:func:`emotive.retarget.feet.plant_feet`): a planted source foot gives a planted target
-   foot. The clip is then moved vertically so that its ankles come as low as the source's,
-   scaled: a source standing on ``y = 0`` gives a target standing on ``y = 0``.
+   follow the source's feet on the target, scaled like the root, by an analytic two-bone
+   solve of each leg over all frames at once (:func:`emotive.retarget.feet.plant_feet`): a
+   planted source foot gives a planted target foot. The clip is then moved vertically so
+   that its ankles come as low as the source's, scaled: a source standing on ``y = 0``
+   gives a target standing on ``y = 0``.
 
 The result carries the target's joint names, hierarchy, offsets and channel layout (so its
 rotation orders), at the source's frame rate or ``fps``.

@@ -1,0 +1,94 @@
+"""FBX input through Blender: a generated walk made into FBX by Blender reads back."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+from pathlib import Path
+
+import pytest
+from test_gltf_input import MM, joint_error
+
+from cli_helpers import invoke_command
+from emotive.commands.generate import generate
+from emotive.errors import MotionFileError
+from emotive.io import fbx
+from emotive.io.bvh import read_bvh, write_bvh
+from emotive.io.motion_files import read_motion
+from tools import require_tool
+
+#: Run inside Blender: import a BVH (metres) and export it as FBX (``-- IN.bvh OUT.fbx``),
+#: every frame baked (no key reduction) and the leaf bones FBX tools add at chain ends.
+BVH_TO_FBX = """
+import builtins, sys, bpy
+_open = builtins.open
+# Blender 3.4's BVH importer opens files with mode "rU", which Python 3.11 removed.
+builtins.open = lambda f, mode="r", *a, **k: _open(f, mode.replace("U", ""), *a, **k)
+src, dst = sys.argv[sys.argv.index("--") + 1:][:2]
+bpy.ops.wm.read_factory_settings(use_empty=True)
+bpy.ops.import_anim.bvh(filepath=src, update_scene_fps=True, update_scene_duration=True)
+bpy.ops.export_scene.fbx(filepath=dst, bake_anim=True, add_leaf_bones=True,
+                         bake_anim_simplify_factor=0.0)
+"""
+
+
+@pytest.fixture(scope="module")
+def blender() -> str:
+    exe = shutil.which("blender")
+    require_tool(exe is not None, "Blender is not installed (apt-get install blender)")
+    return exe
+
+
+@pytest.fixture(scope="module")
+def made(blender, tmp_path_factory):
+    """``(generated walk, its FBX made by Blender, the FBX read by emotive)``."""
+    folder = tmp_path_factory.mktemp("fbx")
+    result = invoke_command("generate", generate, "--seconds", 2, "--out", folder / "gen.bvh")
+    assert result.exit_code == 0, result.output
+    walk = read_bvh(folder / "gen.bvh")
+    bvh = write_bvh(walk, folder / "walk.bvh", unit="m")
+    out = folder / "walk.fbx"
+    run = subprocess.run([blender, "-b", "--factory-startup", "--python-exit-code", "1",
+                          "--python-expr", BVH_TO_FBX, "--", str(bvh), str(out)],
+                         capture_output=True, text=True, timeout=300, check=False)
+    assert run.returncode == 0 and out.is_file(), run.stdout[-2000:] + run.stderr[-2000:]
+    return walk, out, read_motion(out)
+
+
+def test_a_generated_walk_through_blenders_fbx_keeps_its_joints_within_a_millimetre(made):
+    walk, _, back = made
+    assert set(walk.skeleton.names) <= set(back.skeleton.names)
+    assert back.fps == walk.fps and back.num_frames == walk.num_frames
+    assert joint_error(back, walk) < MM
+
+
+def test_fbx_leaf_bones_come_through_as_extra_joints(made):
+    walk, path, back = made
+    extra = set(back.skeleton.names) - set(walk.skeleton.names)
+    assert extra and all(n.endswith("_end") for n in extra)
+    assert back.metadata["source"] == str(path) and back.metadata["name"] == "walk"
+
+
+def test_a_corrupt_fbx_gives_a_typed_error(blender, tmp_path):
+    path = tmp_path / "broken.fbx"
+    path.write_bytes(b"Kaydara FBX Binary  \x00\x1a\x00" + b"\xff" * 64)
+    with pytest.raises(MotionFileError, match=r"broken\.fbx: Blender could not read a skeleton"):
+        read_motion(path)
+    path.write_text("; FBX 7.4.0 project file\nFBXHeaderExtension:  {\n}\n")
+    with pytest.raises(MotionFileError, match=r"ASCII FBX files are not supported.*binary FBX"):
+        read_motion(path)
+
+
+def test_without_blender_the_error_says_how_to_install_it(tmp_path, monkeypatch):
+    path = tmp_path / "walk.fbx"
+    path.write_bytes(b"Kaydara FBX Binary  \x00")
+    monkeypatch.setattr(fbx.shutil, "which", lambda name: None)
+    with pytest.raises(MotionFileError) as exc:
+        read_motion(path)
+    assert str(exc.value).startswith(str(path))
+    assert "apt-get install blender" in str(exc.value) and ".glb" in str(exc.value)
+
+
+def test_a_missing_fbx_is_named(tmp_path: Path):
+    with pytest.raises(MotionFileError, match=r"absent\.fbx: no such file"):
+        read_motion(tmp_path / "absent.fbx")
