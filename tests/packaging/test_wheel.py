@@ -20,11 +20,11 @@ on ``sys.path``. Nothing here skips: ``make test`` installs the dev extra (``bui
 from __future__ import annotations
 
 import os
-import socket
+import queue
 import subprocess
 import sys
 import sysconfig
-import time
+import threading
 import zipfile
 from pathlib import Path
 
@@ -119,28 +119,29 @@ def test_export_onnx_writes_a_model(venv: Path, tmp_path: Path):
     onnx.checker.check_model(str(tmp_path / "gait.onnx"))
 
 
-def _free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        return probe.getsockname()[1]
+def _lines(stream, out: queue.Queue) -> None:
+    """Put each line of ``stream`` on ``out``, then ``None`` at its end."""
+    for line in stream:
+        out.put(line)
+    out.put(None)
 
 
 def test_serve_answers_health_and_the_app(venv: Path, tmp_path: Path):
-    port = _free_port()
-    url = f"http://127.0.0.1:{port}"
-    server = subprocess.Popen([str(venv / "bin" / "emotive"), "serve", "--port", str(port)],
+    server = subprocess.Popen([str(venv / "bin" / "emotive"), "serve", "--port", "0"],
                               cwd=tmp_path, env=_env(), stdout=subprocess.PIPE,
                               stderr=subprocess.STDOUT, text=True)
+    lines: queue.Queue = queue.Queue()
+    threading.Thread(target=_lines, args=(server.stdout, lines), daemon=True).start()
     try:
-        deadline = time.monotonic() + SERVE_WAIT_S
-        health = None
-        while health is None:
-            assert server.poll() is None, server.communicate()[0]
-            assert time.monotonic() < deadline, "emotive serve never answered /api/health"
-            try:
-                health = httpx.get(f"{url}/api/health", timeout=10).json()
-            except httpx.TransportError:
-                time.sleep(0.5)
+        # The command prints its URLs once its socket listens and its engine is loaded.
+        seen, url = [], None
+        while url is None:
+            line = lines.get(timeout=SERVE_WAIT_S)
+            assert line is not None, "emotive serve exited:\n" + "".join(seen)
+            seen.append(line)
+            if line.strip().startswith("app:"):
+                url = line.split()[1].rstrip("/")
+        health = httpx.get(f"{url}/api/health", timeout=SERVE_WAIT_S).json()
         assert health["status"] == "ok" and health["model"] == "gait"
         page = httpx.get(f"{url}/", timeout=30)
         assert page.status_code == 200 and "<html" in page.text.lower()
