@@ -1,9 +1,12 @@
-"""The newcomer's pages: every shell snippet of README.md and docs/getting-started.md runs.
+"""The newcomer's pages: every shell snippet of the README and the command pages runs.
 
-Each ```sh block runs as a bash script with ``set -e`` in an empty folder, with only the
-venv's ``bin`` (and the system's) on ``PATH``, as a user who typed ``source .venv/bin/activate``
-would run it. The files a snippet expects the user to have (``my_character.bvh``, a
-``walk.bvh`` to retarget) are first made with ``emotive generate``. Lines that install
+Each ```sh block of README.md, docs/getting-started.md, docs/cli.md, docs/rigs.md and
+docs/serve.md runs as a bash script with ``set -e`` in an empty folder, with only the venv's
+``bin`` (and the system's) on ``PATH``, as a user who typed ``source .venv/bin/activate``
+would run it. The files a snippet expects the user to have (:data:`USER_FILES`: their
+character as BVH, glTF and FBX, a CMU-named clip, a schedule, data-set clips) are first made
+with emotive itself (``generate``, :func:`emotive.core.rig_layouts.to_layout`, Blender for
+FBX) or copied from the data set when it is there. Lines that install
 (``make``, ``pip``, ``python3.11 -m venv``) are not run here; tests/packaging/test_wheel.py
 checks the wheel. Expensive commands (training, evaluation suites, the server, a 600 s LGB
 clip, the data-set commands) run as ``COMMAND --help``, which checks that the command and the
@@ -21,23 +24,33 @@ import shlex
 import shutil
 import subprocess
 import sys
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import pytest
 
+from tools import bvh_to_fbx, require_tool
+
 REPO = Path(__file__).resolve().parents[1]
-PAGES = [REPO / "README.md", REPO / "docs" / "getting-started.md"]
+PAGES = [REPO / "README.md", *(REPO / "docs" / f"{page}.md"
+                                for page in ("getting-started", "cli", "rigs", "serve"))]
 BLOCK = re.compile(r"^```(?:sh|bash)[^\n]*\n(.*?)^```", re.DOTALL | re.MULTILINE)
 BIN = Path(sys.executable).parent
 #: Hang guard per block only; nothing is asserted about time.
 TIMEOUT_S = 600
 #: Commands whose real run takes minutes or needs the data: run as ``--help`` instead.
 EXPENSIVE = ("emotive train", "emotive evaluate", "emotive serve", "emotive reconstruct",
-             "emotive transfer", "emotive data", "--model lgb")
+             "emotive transfer", "emotive data", "--model lgb", "--weights models/")
 #: Seconds of motion ``emotive generate`` makes here, whatever length the snippet asks.
 QUICK_SECONDS = "2"
-#: Files the snippets name as the user's own, made with emotive in the scratch folder.
-USER_FILES = ("my_character.bvh", "walk.bvh")
+#: Files the snippets name as the user's own, made with emotive in the scratch folder: the
+#: user's character and clips (a generated walk), a CMU-named clip, a schedule.
+USER_FILES = ("my_character.bvh", "walk.bvh", "character.bvh", "my_rig.bvh", "generated.bvh",
+              "tiny_robot.bvh", "my_character.glb", "my_clip.bvh", "my_cmu_clip.bvh",
+              "schedule.json", "waypoints.json", *(f"dataset-1_walk_{c}.bvh" for c in
+                                                    ("happy_001", "sad_001", "angry_002")))
+#: The user's FBX files, made by Blender from the generated walk (only where Blender is).
+FBX_FILES = ("my_character.fbx", "my_capture.fbx")
 
 
 def _commands(block: str) -> list[str]:
@@ -103,11 +116,46 @@ def _env() -> dict[str, str]:
 
 @pytest.fixture(scope="module")
 def user_files(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    from emotive.core.rig_layouts import to_layout
+    from emotive.io.bvh import read_bvh, write_bvh
+
     folder = tmp_path_factory.mktemp("user_files")
-    subprocess.run(["emotive", "generate", "--emotion", "neutral", "--seconds", "3", "--out",
-                    "my_character.bvh"], cwd=folder, env=_env(), check=True, timeout=TIMEOUT_S)
-    shutil.copy(folder / "my_character.bvh", folder / "walk.bvh")
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        for made in [pool.submit(subprocess.run, ["emotive", "generate", "--emotion", "neutral",
+                                                  "--seconds", "3", "--out", out],
+                                 cwd=folder, env=_env(), check=True, timeout=TIMEOUT_S)
+                     for out in ("my_character.bvh", "my_character.glb")]:
+            made.result()
+    for name in ("walk.bvh", "character.bvh", "my_rig.bvh", "generated.bvh", "tiny_robot.bvh"):
+        shutil.copy(folder / "my_character.bvh", folder / name)
+    cmu = to_layout(read_bvh(folder / "my_character.bvh"), "cmu")
+    for name in ("my_clip.bvh", "my_cmu_clip.bvh"):
+        write_bvh(cmu, folder / name)
+    shutil.copy(REPO / "examples" / "angry-to-happy.json", folder / "schedule.json")
+    shutil.copy(REPO / "examples" / "waypoints.json", folder / "waypoints.json")
+    data = _dataset1()
+    for name in USER_FILES:
+        if name.startswith("dataset-1_"):
+            real = data / name if data else None
+            shutil.copy(real if real and real.is_file() else folder / "walk.bvh", folder / name)
+    blender = shutil.which("blender")
+    if blender:
+        with ThreadPoolExecutor(max_workers=2) as pool:
+            for made in [pool.submit(bvh_to_fbx, blender, folder / "walk.bvh", folder / name)
+                         for name in FBX_FILES]:
+                made.result()
     return folder
+
+
+def _dataset1() -> Path | None:
+    """The unpacked dataset-1 BVH folder, or ``None`` (stand-ins are generated walks)."""
+    try:
+        result = subprocess.run(["emotive", "data", "path", "bandai-namco-1"], env=_env(),
+                                capture_output=True, text=True, timeout=TIMEOUT_S)
+    except OSError:
+        return None
+    path = Path(result.stdout.strip()) / "data"
+    return path if result.returncode == 0 and path.is_dir() else None
 
 
 def test_the_pages_have_shell_snippets():
@@ -119,8 +167,6 @@ def test_the_pages_have_shell_snippets():
 def test_no_snippet_names_a_file_only_the_repository_has():
     for where, commands in BLOCKS:
         for command in commands:
-            if "emotive train" in command:
-                continue    # training is shown for a clone of the repository, and says so
             assert "examples/" not in command and "configs/" not in command, (where, command)
 
 
@@ -130,14 +176,41 @@ def test_expensive_commands_are_listed():
     assert any("emotive serve" in c for c in expensive)
 
 
-@pytest.mark.slow
-@pytest.mark.parametrize("commands", [c for _, c in BLOCKS], ids=[w for w, _ in BLOCKS])
-def test_snippet_runs_from_an_empty_folder(commands: list[str], user_files: Path,
-                                           tmp_path: Path):
-    for name in USER_FILES:
-        shutil.copy(user_files / name, tmp_path / name)
+def _needs_blender(commands: list[str]) -> bool:
+    return any(name in command for command in commands for name in FBX_FILES)
+
+
+def _run_block(commands: list[str], user_files: Path, folder: Path
+               ) -> tuple[list[str], subprocess.CompletedProcess[str]]:
+    """Run one block in its own empty folder with the user's files: (script, result)."""
+    folder.mkdir()
+    for name in (*USER_FILES, *FBX_FILES):
+        if (user_files / name).is_file():
+            shutil.copy(user_files / name, folder / name)
     script = ["set -euo pipefail", *map(_quick, commands)]
-    result = subprocess.run(["bash", "-c", "\n".join(script)], cwd=tmp_path, env=_env(),
+    result = subprocess.run(["bash", "-c", "\n".join(script)], cwd=folder, env=_env(),
                             capture_output=True, text=True, timeout=TIMEOUT_S)
+    return script, result
+
+
+@pytest.fixture(scope="module")
+def block_runs(user_files: Path, tmp_path_factory: pytest.TempPathFactory) -> dict:
+    """Every block's (script, result), two at a time (each command runs on one thread)."""
+    root = tmp_path_factory.mktemp("blocks")
+    have_blender = shutil.which("blender") is not None
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        futures = {where: pool.submit(_run_block, commands, user_files, root / f"b{i}")
+                   for i, (where, commands) in enumerate(BLOCKS)
+                   if have_blender or not _needs_blender(commands)}
+        return {where: future.result() for where, future in futures.items()}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("where", "commands"), BLOCKS, ids=[w for w, _ in BLOCKS])
+def test_snippet_runs_from_an_empty_folder(where: str, commands: list[str], block_runs: dict):
+    if _needs_blender(commands):
+        require_tool(shutil.which("blender") is not None,
+                     "Blender is not installed (apt-get install blender): the block reads FBX")
+    script, result = block_runs[where]
     assert result.returncode == 0, (
         "snippet failed:\n" + "\n".join(script) + f"\n--- stderr ---\n{result.stderr[-3000:]}")

@@ -5,17 +5,12 @@ and no "wrote" line (the faults are simulated: :mod:`disk_faults`)."""
 from __future__ import annotations
 
 import errno
-import sys
 from pathlib import Path
 
 import pytest
 
 from disk_faults import fill_disk, refuse_files
 from emotive.cli import main
-from emotive.io.bvh import write_bvh
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "models" / "mar"))
-from mar_helpers import CONFIG, examples, styled
 
 
 def run(capsys, *args: object) -> tuple[int, str, str]:
@@ -31,21 +26,6 @@ def assert_one_error(code: int, out: str, err: str, *words: str) -> None:
     assert code == 2 and out == "", (code, out, err)
     assert err.startswith("error: ") and err.count("\n") == 1, err
     assert "wrote" not in err and all(w in err for w in words), err
-
-
-@pytest.fixture(scope="module")
-def index(tmp_path_factory) -> Path:
-    """A synthetic style-transfer index (no data needed)."""
-    from emotive.models.mar.build import build_database
-
-    return build_database(examples(3), CONFIG).save(tmp_path_factory.mktemp("idx") / "i.npz")
-
-
-@pytest.fixture(scope="module")
-def clip(tmp_path_factory) -> Path:
-    """A synthetic walk in its own folder."""
-    return write_bvh(styled("walk", "neutral", take=2),
-                     tmp_path_factory.mktemp("clip") / "walk.bvh", unit="cm")
 
 
 def test_generate_onto_a_full_disk_leaves_no_bvh_and_no_gif(tmp_path, monkeypatch, capsys):
@@ -112,6 +92,30 @@ def test_a_folder_named_as_the_output_is_one_error(tmp_path, capsys, clip, index
     assert_one_error(*run(capsys, *args), str(folder), "that is a folder", "name a file")
     assert [p.name for p in tmp_path.iterdir()] == ["taken.gif"]
     assert list(folder.iterdir()) == []
+
+
+def _file_parent_cases(clip: Path, index: Path, notes: Path) -> list[list[object]]:
+    return [
+        ["generate", "--seconds", "1", "-o", notes / "a.bvh"],
+        ["generate", "--seconds", "1", "-o", notes.parent / "a.bvh", "--preview",
+         notes / "deeper" / "a.gif"],
+        ["transfer", clip, "--style", "proud", "--index", index, "-o", notes / "a.bvh"],
+        ["reconstruct", clip, "-o", notes / "a.bvh"],
+        ["preview", clip, "-o", notes / "a.mp4"],
+        ["features", clip, "-o", notes / "a.csv"],
+    ]
+
+
+@pytest.mark.parametrize("case", range(6))
+def test_an_output_inside_a_file_says_the_file_is_no_folder(tmp_path, capsys, clip, index,
+                                                            case):
+    notes = tmp_path / "notes.txt"
+    notes.write_text("mine")
+    args = _file_parent_cases(clip, index, notes)[case]
+    assert_one_error(*run(capsys, *args), f"{notes} is a file, not a folder",
+                     "put the file in a folder")
+    assert [p.name for p in tmp_path.iterdir()] == ["notes.txt"]
+    assert notes.read_text() == "mine"
 
 
 def test_a_file_named_as_the_report_folder_is_one_error(tmp_path, capsys):

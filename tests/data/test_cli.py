@@ -14,6 +14,7 @@ import pytest
 from typer.testing import CliRunner
 
 from emotive import cli
+from emotive.commands import data as data_command
 from emotive.data import registry, store
 from emotive.data.stats import frame_stats
 from emotive.errors import DataError
@@ -188,3 +189,66 @@ def test_fetch_refuses_links_in_archive(fake_tools, tmp_path, monkeypatch, capsy
     assert code == 2 and err.count("\n") == 1
     assert f"'{folder.name}/data/escape' is a symbolic link" in err
     assert not (isolated_home / "datasets" / info.folder).exists()
+
+
+def test_verify_reports_damage_in_one_table_and_fetch_repairs(fake, isolated_home, monkeypatch,
+                                                               capsys):
+    monkeypatch.setenv("COLUMNS", "200")
+    invoke("fetch", "fake-1", "--source", str(fake.archive))
+    code, out, err = run_main(monkeypatch, capsys, "verify", "fake-1")
+    assert (code, err) == (0, "") and "all 39 files in" in out and "match its archive" in out
+    folder = isolated_home / "datasets" / fake.info.folder
+    clip = folder / "data" / "dataset-1_walk_sad_002.bvh"
+    original = clip.read_bytes()
+    clip.write_bytes(original[:-1] + bytes([original[-1] ^ 1]))
+    (folder / "LICENSE").unlink()
+    code, out, err = run_main(monkeypatch, capsys, "verify", "fake-1")
+    assert code == 1 and err == ""
+    assert "1 damaged, 1 missing, 0 extra of 39 files" in out
+    rows = [line for line in out.splitlines() if "│" in line]
+    assert [[c.strip() for c in row.split("│")[1:3]] for row in rows] == [
+        ["missing", "LICENSE"], ["damaged", "data/dataset-1_walk_sad_002.bvh"]
+    ]
+    assert out.splitlines()[-1] == (
+        "fix: run `emotive data fetch fake-1` to unpack the damaged and missing files again "
+        "and remove the extra ones"
+    )
+    monkeypatch.setattr(data_command, "MAX_ROWS", 1)
+    out = run_main(monkeypatch, capsys, "verify", "fake-1")[1]
+    assert "LICENSE" in out and "walk_sad_002" not in out and "│ 1 more " in out
+    code, out, err = run_main(monkeypatch, capsys, "fetch", "fake-1")
+    assert code == 0, err
+    assert "fake-1 repaired from its archive: 1 damaged, 1 missing, 0 extra (LICENSE, " in out
+    assert clip.read_bytes() == original
+    assert run_main(monkeypatch, capsys, "verify", "fake-1")[0] == 0
+
+
+def test_verify_never_unpacked_is_one_line(fake, no_shared_data, monkeypatch, capsys):
+    code, out, err = run_main(monkeypatch, capsys, "verify", "fake-1")
+    assert code == 2 and out == "" and err.count("\n") == 1
+    assert err.startswith("error: data set 'fake-1' is not unpacked in the cache")
+    assert "run `emotive data fetch fake-1` first" in err
+
+
+def test_read_only_cache_is_verified_and_used_but_not_repaired(fake, isolated_home,
+                                                              monkeypatch, capsys):
+    invoke("fetch", "fake-1", "--source", str(fake.archive))
+    datasets = isolated_home / "datasets"
+    leftover = datasets / f".{fake.info.folder}.k1ll3d_x"
+    leftover.mkdir()
+    with monkeypatch.context() as mp:
+        read_only(mp, isolated_home)
+        assert store.dataset_dir("fake-1") == datasets / fake.info.folder
+        assert run_main(mp, capsys, "verify", "fake-1")[0] == 0
+        code, out, _ = run_main(mp, capsys, "fetch", "fake-1")
+        assert code == 0 and "all 39 files match its archive" in out
+    (datasets / fake.info.folder / "LICENSE").unlink()
+    with monkeypatch.context() as mp:
+        read_only(mp, isolated_home)
+        assert run_main(mp, capsys, "verify", "fake-1")[0] == 1
+        code, _, err = run_main(mp, capsys, "fetch", "fake-1")
+        assert code == 2 and err.count("\n") == 1
+        assert "has 1 damaged, missing or extra files" in err and "read-only" in err
+    assert leftover.exists()  # nothing could be removed while read-only
+    assert run_main(monkeypatch, capsys, "fetch", "fake-1")[0] == 0
+    assert not leftover.exists() and store.verify("fake-1").clean

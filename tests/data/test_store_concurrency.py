@@ -73,8 +73,10 @@ def test_first_unpack_by_many_processes(n, fake, tmp_path, isolated_home):
     for _, out, _ in results:
         seen = json.loads(out)
         assert seen == {"folder": str(target), "files": want}
-    # One complete folder: no second copy, temporary folder or lock file left.
-    assert [p.name for p in (isolated_home / "datasets").iterdir()] == [fake.info.folder]
+    # One complete folder and its manifest: no second copy, temporary folder or lock file.
+    assert sorted(p.name for p in (isolated_home / "datasets").iterdir()) == [
+        fake.info.folder, fake.info.folder + ".manifest.json"
+    ]
     assert store.is_cached("fake-1")
 
 
@@ -86,7 +88,9 @@ def test_first_unpack_of_real_dataset1_by_four_processes(shared_data, tmp_path):
     listings = [json.loads(out) for _, out, _ in results]
     assert all(seen == listings[0] for seen in listings)
     assert sum(f.endswith(".bvh") for f in listings[0]["files"]) == info.clips
-    assert [p.name for p in (home / "datasets").iterdir()] == [info.folder]
+    assert sorted(p.name for p in (home / "datasets").iterdir()) == [
+        info.folder, info.folder + ".manifest.json"
+    ]
 
 
 def test_lock_excludes_a_second_holder_and_times_out(tmp_path):

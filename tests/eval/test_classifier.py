@@ -237,6 +237,20 @@ def test_committed_classifier_and_card():
     assert default_classifier_path().stat().st_size < 1_000_000
 
 
+def test_a_trained_card_carries_the_fingerprint_its_shipped_copy_is_checked_against(tmp_path):
+    from emotive.eval.classifier_card import classifier_card
+    from emotive.models.checkpoint_checks import card_fingerprints, check_fingerprint, sha256_of
+
+    shipped = default_classifier_path()
+    weights = (shipped.name, sha256_of(shipped))
+    card = tmp_path / "MODEL_CARD.md"
+    card.write_text(classifier_card(load_default_classifier(), {"train": [], "val": [],
+                                                                "test": []}, weights))
+    assert card_fingerprints(card) == {shipped.name: weights[1]}
+    assert card_fingerprints(shipped.parent / "MODEL_CARD.md") == {shipped.name: weights[1]}
+    check_fingerprint(shipped)
+
+
 @pytest.mark.data
 def test_cli_table_and_json(walk, tmp_path, monkeypatch, capsys):
     clip = write_bvh(walk, tmp_path / "walk.bvh")

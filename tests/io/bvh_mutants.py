@@ -4,8 +4,10 @@
 :func:`emotive.io.bvh.write_bvh`; :func:`mutants` derives over 2,000 files from it: byte
 flips, token deletions and duplications, huge, tiny, NaN and infinite numbers (``Frame
 Time`` 1e-310, 1e-9, 1e6, 1e308 among them), deep nesting, truncation, channel counts,
-unbalanced braces, binary junk, CRLF, CR and a BOM. Nothing is committed: the corpus is
-rebuilt from a fixed seed on every run.
+unbalanced braces, binary junk, CRLF, CR and a BOM, and the budgets of the reader (a line
+or a frame row over 1 MiB, a word over 256 characters, a ``Frames:`` of 5,000 digits, more
+values than the reader takes, figures of 1.7 cm and 170 m). Nothing is committed: the corpus
+is rebuilt from a fixed seed on every run.
 """
 
 from __future__ import annotations
@@ -35,7 +37,7 @@ FRAME_TIMES = (
 )
 #: ``Frames:`` values, declared against the 5 rows that follow.
 FRAME_COUNTS = ("0", "-1", "4", "6", "1000000", "1000001", "10000000", "10" * 40, "4.5",
-                "5e0", "", "five")
+                "5e0", "", "five", "1" * 4000, "1" * 5000, "333334")
 N_FRAMES = 5
 
 
@@ -156,6 +158,13 @@ def _targeted_mutants(text: str) -> Iterator[tuple[str, bytes]]:
     yield "one_long_line", text.replace("\n", " ").encode()
     yield "latin1_name", text.replace("Hips", "H\xefps").encode("latin-1")
     yield "huge_row", (text.rstrip("\n") + " 0" * 100_000 + "\n").encode()
+    yield "row_over_a_mebibyte", (text.rstrip("\n") + " 0" * 600_000 + "\n").encode()
+    yield "blank_row_over_a_mebibyte", (text + " " * (1 << 21) + "\n").encode()
+    yield "one_token_over_a_mebibyte", b"x" * (1 << 21)
+    yield "long_joint_name", text.replace("Hips", "H" * 300).encode()
+    yield "long_joint_name_in_bounds", text.replace("Hips", "H" * 256).encode()
+    yield "long_non_numeric_value", _swap(text, _number_spans(text)[-1], "x" * 5000).encode()
+    yield "second_offset", text.replace("OFFSET 0 95 0", "OFFSET 0 95 0\nOFFSET 0 95 0").encode()
 
 
 def mutants(seed: int = 26) -> list[tuple[str, bytes]]:

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from bvh_mutants import base_motion, deep_chain, mutants
+from bvh_mutants import N_FRAMES, base_motion, base_text, deep_chain, mutants
 
 from cli_helpers import run_main
 from emotive.errors import BVHError
@@ -22,6 +22,9 @@ from emotive.io.bvh import read_bvh, write_bvh
 #: time is the process's CPU time, which other jobs on a busy machine do not stretch.
 SECONDS_PER_MUTANT = 2.0
 PEAK_BYTES_PER_MUTANT = 200 * 2**20
+#: Longest message of a refused mutant: the longest fixed text plus quotes of at most 80
+#: characters (a ``Frames:`` of 5,000 digits was once echoed whole).
+MAX_PROBLEM_CHARS = 300
 
 
 def assert_plausible(motion) -> None:
@@ -58,6 +61,7 @@ def test_every_mutant_is_a_bvh_error_or_a_plausible_motion(tmp_path):
                 motion = read_bvh(path)
             except BVHError as exc:
                 assert "\n" not in str(exc) and str(path) in str(exc), (name, str(exc))
+                assert len(exc.problem) <= MAX_PROBLEM_CHARS, (name, str(exc)[:400])
                 outcomes["error"] += 1
             except Exception as exc:
                 crashes.append(f"{name}: {type(exc).__name__}: {exc}"[:300])
@@ -110,7 +114,8 @@ def test_deep_nesting_is_read_without_recursion_up_to_the_joint_limit(tmp_path):
 
 
 @pytest.mark.parametrize(("frames", "words"), [
-    ("1000001", "at most 1,000,000 frames"), ("999999", "only 5 follow"),
+    ("1000001", "at most 1,000,000 frames"), ("300000", "only 5 follow"),
+    ("999999", "at most 20,000,000 are read"),
 ])
 def test_frame_count_is_checked_before_allocating(tmp_path, frames, words):
     path = write_bvh(base_motion(), tmp_path / "clip.bvh")
@@ -205,7 +210,14 @@ class TestUnits:
     def test_a_file_read_with_a_forced_unit_re_reads_the_same(self, tmp_path, forced):
         path = write_bvh(base_motion(), tmp_path / "clip.bvh", unit="cm")
         forced_motion = read_bvh(path, unit=forced)
-        again = read_bvh(write_bvh(forced_motion, tmp_path / "again.bvh"))
+        written = write_bvh(forced_motion, tmp_path / "again.bvh")
+        if forced == "m":
+            # A 181 m giant, written in millimetres: read back only with that unit given.
+            with pytest.raises(BVHError, match=r"181 m tall.*--unit"):
+                read_bvh(written)
+            again = read_bvh(written, unit="mm")
+        else:
+            again = read_bvh(written)
         assert again.skeleton.same_as(forced_motion.skeleton)
         np.testing.assert_allclose(again.positions, forced_motion.positions, atol=1e-9)
 
@@ -259,3 +271,157 @@ def test_cli_mutants_give_one_error_line_or_succeed(monkeypatch, capsys, tmp_pat
         for made in (path, tmp_path / "features.csv"):
             made.unlink(missing_ok=True)
     assert failed > 0 and succeeded > 0
+
+
+GB = 10**9
+
+
+def sparse_file(path: Path, head: bytes, size: int = GB) -> Path:
+    """``head`` followed by zero bytes up to ``size`` bytes, as a sparse file.
+
+    The reader refuses each of these files within ``head``, so what follows it (zeros here,
+    real text in the files of the issue) is never read: it behaves as on the written file.
+    """
+    with open(path, "wb") as fh:
+        fh.write(head)
+        fh.truncate(size)
+    return path
+
+
+def read_refused(path: Path, words: str) -> BVHError:
+    """The BVHError of reading ``path``, checked to match ``words`` and to stay small."""
+    tracemalloc.start()
+    try:
+        with pytest.raises(BVHError, match=words) as info:
+            read_bvh(path)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 30 * 2**20, peak
+    assert "\n" not in str(info.value) and len(info.value.problem) <= MAX_PROBLEM_CHARS
+    return info.value
+
+
+ONE_JOINT = ("HIERARCHY\nROOT Hips\n{\n  OFFSET 0 0 0\n  CHANNELS 3 Zrotation Xrotation Yrotation\n"
+             "  End Site\n  {\n    OFFSET 0 170 0\n  }\n}\nMOTION\nFrames: 1\n"
+             "Frame Time: 0.0333333\n")
+
+
+class TestBudgets:
+    """The three 1 GB files of the hardening campaign, refused before they are read whole."""
+
+    def test_a_gigabyte_of_one_token(self, tmp_path):
+        path = sparse_file(tmp_path / "token.bvh", b"x" * (3 * limits.MAX_LINE_CHARS))
+        err = read_refused(path, "longer than 1,048,576 characters")
+        assert err.line == 1 and path.stat().st_size == GB
+
+    def test_a_gigabyte_row_of_three_channels(self, tmp_path):
+        head = ONE_JOINT.encode() + b"0 " * (2 * limits.MAX_LINE_CHARS)
+        err = read_refused(sparse_file(tmp_path / "row.bvh", head),
+                           "more than the 3 values the hierarchy's channels declare")
+        assert err.line == ONE_JOINT.count("\n") + 1
+
+    def test_59_million_values_are_refused_from_the_header(self, tmp_path):
+        text = base_text()
+        width = len(text.splitlines()[-1].split())
+        frames = 59_000_000 // width
+        head = text.replace(f"Frames: {N_FRAMES}", f"Frames: {frames}").encode()
+        err = read_refused(sparse_file(tmp_path / "values.bvh", head),
+                           f"{frames:,} frames x {width} channels .* at most 20,000,000")
+        assert err.line == text.splitlines().index(f"Frames: {N_FRAMES}") + 1
+
+    def test_a_file_at_the_values_limit_is_read_and_one_above_is_not(self, tmp_path,
+                                                                     monkeypatch):
+        motion = base_motion(frames=12)
+        path = write_bvh(motion, tmp_path / "clip.bvh")
+        width = len(path.read_text().splitlines()[-1].split())
+        monkeypatch.setattr(limits, "MAX_VALUES", 12 * width)
+        assert read_bvh(path).num_frames == 12
+        monkeypatch.setattr(limits, "MAX_VALUES", 12 * width - 1)
+        with pytest.raises(BVHError, match=f"= {12 * width} values: at most"):
+            read_bvh(path)
+
+    def test_a_row_within_its_width_but_over_the_line_limit(self, tmp_path, monkeypatch):
+        monkeypatch.setattr(limits, "MAX_LINE_CHARS", 1000)
+        path = tmp_path / "spaces.bvh"
+        path.write_text(ONE_JOINT + "0" + " " * 1000 + "0 0\n")
+        with pytest.raises(BVHError, match="longer than 1,000 characters"):
+            read_bvh(path)
+        path.write_text(ONE_JOINT + "0" + " " * 990 + "0 0\n")
+        assert read_bvh(path).num_frames == 1
+
+    def test_a_word_over_the_token_limit(self, tmp_path):
+        text = base_text()
+        path = tmp_path / "name.bvh"
+        path.write_text(text.replace("Spine", "S" * (limits.MAX_TOKEN_CHARS + 1)))
+        err = read_refused(path, "a word of 257 characters, 'SSS.*' .* at most 256")
+        assert err.line == 6
+        path.write_text(text.replace("Spine", "S" * limits.MAX_TOKEN_CHARS))
+        assert "S" * limits.MAX_TOKEN_CHARS in read_bvh(path).skeleton.names
+
+    def test_end_sites_are_bounded_like_joints(self, tmp_path, monkeypatch):
+        monkeypatch.setattr(limits, "MAX_JOINTS", 3)
+        end = "End Site\n{\nOFFSET 0 1 0\n}\n"
+        path = tmp_path / "ends.bvh"
+        path.write_text(ONE_JOINT.replace("  End Site", end * 3 + "  End Site"))
+        with pytest.raises(BVHError, match="more than 3 end sites"):
+            read_bvh(path)
+        path.write_text(ONE_JOINT.replace("  End Site", end * 2 + "  End Site") + "0 0 0\n")
+        assert read_bvh(path).skeleton.end_site_offsets.shape == (3, 3)
+
+
+class TestQuotes:
+    @pytest.mark.parametrize(("frames", "words"), [
+        ("1" * 5000, "whole number >= 0"), ("1" * 4000, "at most 1,000,000 frames"),
+    ])
+    def test_a_long_frame_count_is_quoted_short(self, tmp_path, frames, words):
+        path = write_bvh(base_motion(), tmp_path / "clip.bvh")
+        path.write_text(path.read_text().replace(f"Frames: {N_FRAMES}", f"Frames: {frames}"))
+        with pytest.raises(BVHError, match=words) as info:
+            read_bvh(path)
+        quoted = f"'{'1' * 77}...' ({len(frames):,} characters)"
+        assert quoted in info.value.problem and "1" * 78 not in info.value.problem
+
+    def test_a_long_value_in_the_frames_is_quoted_short(self, tmp_path):
+        path = write_bvh(base_motion(), tmp_path / "clip.bvh")
+        lines = path.read_text().splitlines()
+        lines[-2] = " ".join(["y" * 5000, *lines[-2].split()[1:]])
+        path.write_text("\n".join(lines) + "\n")
+        with pytest.raises(BVHError, match=r"non-numeric value 'y{77}\.\.\.' \(5,000 characters\)"):
+            read_bvh(path)
+
+    def test_quote(self):
+        assert limits.quote("abc") == "'abc'"
+        assert limits.quote("a" * 80) == f"'{'a' * 80}'"
+        assert limits.quote("a" * 81) == f"'{'a' * 77}...' (81 characters)"
+
+
+class TestHeightBound:
+    @pytest.mark.parametrize(("scale", "words"), [
+        (100.0, r"stands 1\d\.\d m tall with its unit detected as 'mm'"),
+        (1e-4, r"stands 0\.01\d\d m tall with its unit detected as 'm'"),
+    ])
+    def test_an_implausible_figure_is_refused_unless_its_unit_is_given(
+            self, tmp_path, monkeypatch, capsys, scale, words):
+        # A 170 m figure written in centimetres (17,000 units) is detected as millimetres
+        # (17 m); a 0.17 mm figure (0.017 units) as metres.
+        motion = base_motion()
+        sk = motion.skeleton.scaled(scale)
+        scaled = motion.replace(skeleton=sk, positions=motion.positions * scale)
+        path = write_bvh(scaled, tmp_path / "clip.bvh", unit="cm")
+        with pytest.raises(BVHError, match=f"{words}: 0.05-10 m is plausible.*--unit"):
+            read_bvh(path)
+        assert read_bvh(path, unit="cm").skeleton.same_as(sk)
+        monkeypatch.chdir(tmp_path)
+        code, _, err = run_main(monkeypatch, capsys, "info", path)
+        assert code == 2 and err.startswith("error: ") and err.count("\n") == 1, err
+        assert "--unit" in err
+        code, _, err = run_main(monkeypatch, capsys, "info", path, "--unit", "cm")
+        assert code == 0, err
+
+    def test_the_bounds_are_inclusive_and_apply_to_a_detected_unit(self):
+        low, high = limits.PLAUSIBLE_HEIGHT_M
+        assert limits.height_problem(low, "m") is None
+        assert limits.height_problem(high, "mm") is None
+        assert "'cmu'" in limits.height_problem(high * 1.01, "cmu")
+        assert limits.height_problem(low * 0.99, "m") is not None

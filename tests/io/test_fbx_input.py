@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import shutil
-import subprocess
 from pathlib import Path
 
 import pytest
@@ -15,21 +14,7 @@ from emotive.errors import MotionFileError
 from emotive.io import fbx
 from emotive.io.bvh import read_bvh, write_bvh
 from emotive.io.motion_files import read_motion
-from tools import require_tool
-
-#: Run inside Blender: import a BVH (metres) and export it as FBX (``-- IN.bvh OUT.fbx``),
-#: every frame baked (no key reduction) and the leaf bones FBX tools add at chain ends.
-BVH_TO_FBX = """
-import builtins, sys, bpy
-_open = builtins.open
-# Blender 3.4's BVH importer opens files with mode "rU", which Python 3.11 removed.
-builtins.open = lambda f, mode="r", *a, **k: _open(f, mode.replace("U", ""), *a, **k)
-src, dst = sys.argv[sys.argv.index("--") + 1:][:2]
-bpy.ops.wm.read_factory_settings(use_empty=True)
-bpy.ops.import_anim.bvh(filepath=src, update_scene_fps=True, update_scene_duration=True)
-bpy.ops.export_scene.fbx(filepath=dst, bake_anim=True, add_leaf_bones=True,
-                         bake_anim_simplify_factor=0.0)
-"""
+from tools import bvh_to_fbx, require_tool
 
 
 @pytest.fixture(scope="module")
@@ -48,10 +33,7 @@ def made(blender, tmp_path_factory):
     walk = read_bvh(folder / "gen.bvh")
     bvh = write_bvh(walk, folder / "walk.bvh", unit="m")
     out = folder / "walk.fbx"
-    run = subprocess.run([blender, "-b", "--factory-startup", "--python-exit-code", "1",
-                          "--python-expr", BVH_TO_FBX, "--", str(bvh), str(out)],
-                         capture_output=True, text=True, timeout=300, check=False)
-    assert run.returncode == 0 and out.is_file(), run.stdout[-2000:] + run.stderr[-2000:]
+    bvh_to_fbx(blender, bvh, out)
     return walk, out, read_motion(out)
 
 

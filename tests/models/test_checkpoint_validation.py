@@ -1,7 +1,8 @@
 """Every checkpoint loader checks its file field by field: corrupt variants of each committed
 checkpoint (a missing entry, a wrong shape, NaN or absurd weights, a zero standard deviation,
-NaN controls, a bare tensor, a truncated or non-torch file) are one-line ConfigErrors through
-the API, and one ``error:`` line with exit code 2 through the command line."""
+NaN controls, a NaN config value, a bare tensor, a truncated or non-torch file) are one-line
+ConfigErrors through the API, and one ``error:`` line with exit code 2 through the command
+line."""
 
 from __future__ import annotations
 
@@ -82,10 +83,14 @@ def variants(name: str, ckpt: dict[str, Any]) -> dict[str, tuple[Any, str]]:
     out["wrong-shape"] = (shaped, f"state['{key}'] has shape")
     out["nan-weight"] = (with_value(ckpt, math.nan), "holds nan")
     out["inf-weight"] = (with_value(ckpt, -math.inf), "holds -inf")
-    out["absurd-weight"] = (with_value(ckpt, 1e30), "holds 1e+30, beyond the plausible 1e+06")
+    out["absurd-weight"] = (with_value(ckpt, 1e30), "holds 1e+30, beyond the trained range")
     out["zero-std"] = (with_zero_std(ckpt, std_at), "a standard deviation must be above 0")
     out["config-not-a-dict"] = ({**ckpt, "config": "tcn"}, "'config' is a str, not a dict")
     out["bare-tensor"] = (torch.zeros(3), "holds a Tensor, not a dict")
+    # A NaN frame rate once reached `emotive classify` as "cannot convert float NaN to integer".
+    field = "init_std" if name == "fcrbm" else "fps"
+    out["config-nan"] = ({**ckpt, "config": {**ckpt["config"], field: math.nan}},
+                         f"{field} must be")
     if "controls" in ckpt:
         controls = copy.deepcopy(ckpt)
         controls["controls"]["speed"][1] = math.nan
@@ -95,7 +100,7 @@ def variants(name: str, ckpt: dict[str, Any]) -> dict[str, tuple[Any, str]]:
     if name == "classifier":
         short = copy.deepcopy(ckpt)
         short["mean"] = short["mean"][:5].clone()
-        out["mean-shape"] = (short, "'mean' has shape (5,), not (152,)")
+        out["mean-shape"] = (short, "'mean' has shape (5,) but the config needs (152,)")
     return out
 
 

@@ -123,11 +123,11 @@ def test_read_checkpoint_turns_every_failure_into_a_config_error(tmp_path):
 
 def test_check_resumable_allows_only_more_epochs(tmp_path):
     saved = {"config": {"size": 3}, "train": {"epochs": 2, "lr": 0.1}}
-    check_resumable(tmp_path, saved, {"size": 3}, {"epochs": 5, "lr": 0.1})
+    check_resumable(tmp_path, saved, {"size": 3}, {"epochs": 5, "lr": 0.1}, 0)
     with pytest.raises(ConfigError, match=r"another \[model\] config"):
-        check_resumable(tmp_path, saved, {"size": 4}, {"epochs": 2, "lr": 0.1})
+        check_resumable(tmp_path, saved, {"size": 4}, {"epochs": 2, "lr": 0.1}, 0)
     with pytest.raises(ConfigError, match=r"other \[train\] settings"):
-        check_resumable(tmp_path, saved, {"size": 3}, {"epochs": 2, "lr": 0.2})
+        check_resumable(tmp_path, saved, {"size": 3}, {"epochs": 2, "lr": 0.2}, 0)
 
 
 def test_random_state_round_trips_numpy_and_torch():

@@ -103,6 +103,17 @@ def test_emotive_is_imported_from_the_clean_venv(venv: Path, tmp_path: Path):
     assert src_on_path == "False"
 
 
+def test_the_training_recipes_come_with_the_wheel(venv: Path, tmp_path: Path):
+    code = ("from emotive.configs import resolve_config; "
+            "from emotive.models.gait.training import load_gait_settings; "
+            "path = resolve_config('gait-finetune'); print(path); "
+            "print(load_gait_settings(path)[1].init_from)")
+    recipe, start = _run(venv, tmp_path, "python", "-c", code).stdout.split()
+    for path in (Path(recipe), Path(start)):
+        assert path.is_file() and path.resolve().is_relative_to(venv.resolve()), path
+    assert "--config" in _run(venv, tmp_path, "emotive", "train", "gait", "--help").stdout
+
+
 def test_generate_writes_a_bvh_that_parses(venv: Path, tmp_path: Path):
     from emotive.io.bvh import read_bvh
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import signal
 import sys
 
 import imageio_ffmpeg
@@ -98,13 +99,17 @@ def test_bones_skip_translation_links_and_colour_sides(walker):
 @pytest.mark.parametrize(("name", "kwargs", "words"), [
     ("w.avi", {}, "unknown video type"),
     ("missing/w.mp4", {}, "does not exist"),
+    ("notes.txt/w.mp4", {}, "notes.txt is a file, not a folder"),
     ("w.mp4", {"captions": ["x"]}, "captions"),
     ("w.mp4", {"fps": 0.0}, "positive"),
 ])
 def test_bad_requests(tmp_path, walker, name, kwargs, words):
+    if name.startswith("notes.txt/"):
+        (tmp_path / "notes.txt").write_text("mine")
+    before = sorted(tmp_path.iterdir())
     with pytest.raises(PreviewError, match=words):
         render_preview(walker, tmp_path / name, **kwargs)
-    assert list(tmp_path.iterdir()) == []
+    assert sorted(tmp_path.iterdir()) == before
 
 
 def test_encoder_failure_leaves_no_file(tmp_path, walker, monkeypatch):
@@ -112,6 +117,42 @@ def test_encoder_failure_leaves_no_file(tmp_path, walker, monkeypatch):
                                                              "import sys; sys.exit(3)"])
     with pytest.raises(OutputError, match=r"cannot write .*w\.mp4.*ffmpeg"):
         render_preview(walker, tmp_path / "w.mp4")
+    assert list(tmp_path.iterdir()) == []
+
+
+#: Runs the command after it under a file-size limit of 4 KiB, with the default action of
+#: ``SIGXFSZ`` (killed), as after ``ulimit -f`` in a shell: Python ignores the signal, so it
+#: is restored before ffmpeg starts.
+UNDER_FILE_SIZE_LIMIT = (
+    "import os, resource, signal, sys; "
+    "resource.setrlimit(resource.RLIMIT_FSIZE, (4096, 4096)); "
+    "signal.signal(signal.SIGXFSZ, signal.SIG_DFL); os.execv(sys.argv[1], sys.argv[1:])"
+)
+
+
+@pytest.mark.skipif(not hasattr(signal, "SIGXFSZ"), reason="needs POSIX file-size limits")
+def test_ffmpeg_stopped_by_the_file_size_limit_is_explained(tmp_path, walker, monkeypatch):
+    real = video_mod._command
+    monkeypatch.setattr(video_mod, "_command", lambda *a: [sys.executable, "-c",
+                                                           UNDER_FILE_SIZE_LIMIT, *real(*a)])
+    with pytest.raises(OutputError) as exc:
+        render_preview(walker, tmp_path / "w.mp4", size=(320, 240))
+    message = str(exc.value)
+    assert "w.mp4" in message and "file-size limit (SIGXFSZ)" in message, message
+    assert "ulimit -f" in message and "-25" not in message and "\n" not in message
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(("sig", "words"), [("SIGKILL", "out of memory"),
+                                            ("SIGSEGV", "run the command again")])
+def test_ffmpeg_killed_by_a_signal_is_named_by_it(tmp_path, walker, monkeypatch, sig, words):
+    script = f"import os, signal; os.kill(os.getpid(), signal.{sig})"
+    monkeypatch.setattr(video_mod, "_command", lambda *a: [sys.executable, "-c", script])
+    with pytest.raises(OutputError) as exc:
+        render_preview(walker, tmp_path / "w.gif", size=(64, 64))
+    message = str(exc.value)
+    assert f"(ffmpeg) was stopped by signal {sig} (" in message and words in message, message
+    assert "exit status" not in message
     assert list(tmp_path.iterdir()) == []
 
 

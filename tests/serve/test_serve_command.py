@@ -21,6 +21,8 @@ def test_bad_options_exit_2(monkeypatch, capsys):
     assert code == 2 and "streaming model" in err
     code, _, err = run_main(monkeypatch, capsys, "serve", "--max-agents", "0")
     assert code == 2 and "max-agents" in err
+    code, _, err = run_main(monkeypatch, capsys, "serve", "--max-agents-per-client", "0")
+    assert code == 2 and "max-agents-per-client must be a positive number" in err
 
 
 def test_a_port_in_use_is_named(monkeypatch, capsys):

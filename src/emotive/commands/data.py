@@ -1,21 +1,27 @@
-"""``emotive data``: list, fetch and describe the motion data sets.
+"""``emotive data``: list, fetch, verify and describe the motion data sets.
 
 Heavy modules are imported inside the commands so that ``emotive --help`` stays fast.
 """
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
 from emotive.commands.options import flag
 
+if TYPE_CHECKING:
+    from emotive.data.store import Verification
+
 app = typer.Typer(
-    help="List, fetch and describe the motion data sets.",
+    help="List, fetch, verify and describe the motion data sets.",
     no_args_is_help=True,
     add_completion=False,
 )
+
+#: The most problems `emotive data verify` lists one by one; the counts cover the rest.
+MAX_ROWS = 50
 
 
 @app.command("list")
@@ -57,17 +63,70 @@ def fetch(
         bool, flag("force", "Fetch and unpack again even when cached.")
     ] = False,
 ) -> None:
-    """Download or copy a data set's archive, check its sha256 and unpack it into the cache."""
+    """Download or copy a data set's archive, check its sha256 and unpack it into the cache.
+
+    A data set already in the cache is verified against its manifest instead, and damaged or
+    missing files are unpacked again (extra ones removed).
+    """
     from emotive.data.registry import get_dataset
     from emotive.data.store import fetch as fetch_dataset
-    from emotive.data.store import is_cached
+    from emotive.data.store import is_cached, repair
 
     info = get_dataset(name)
     typer.echo(f"{info.title}: {info.attribution}")
     if is_cached(info) and not force:
-        typer.echo(f"{info.name} is already in the cache; use --force to fetch it again")
-    folder = fetch_dataset(info, source, force=force, progress=True)
+        found = repair(info, source, progress=True)
+        if found.clean:
+            typer.echo(f"{info.name} is already in the cache and all {found.files} files match "
+                       "its archive; use --force to fetch it again")
+        else:
+            names = ", ".join(p.path for p in found.problems[:5])
+            more = f" and {len(found.problems) - 5} more" if len(found.problems) > 5 else ""
+            typer.echo(f"{info.name} repaired from its archive: {_summary(found)} ({names}{more})")
+        folder = found.folder
+    else:
+        folder = fetch_dataset(info, source, force=force, progress=True)
     typer.echo(f"{info.name} ready in {folder}")
+
+
+
+def _summary(found: Verification) -> str:
+    """``"1 damaged, 2 missing, 0 extra"`` for a :class:`~emotive.data.store.Verification`."""
+    return ", ".join(f"{found.count(kind)} {kind}" for kind in ("damaged", "missing", "extra"))
+
+
+@app.command()
+def verify(
+    name: Annotated[str, typer.Argument(help="Data set name (see `emotive data list`).")],
+) -> None:
+    """Check every unpacked file of a data set against the sha256 manifest of its archive.
+
+    Prints a table of the damaged, missing and extra files and exits with 1 when there are any
+    (0 when the data set is intact); `emotive data fetch NAME` repairs them.
+    """
+    from rich.console import Console
+    from rich.table import Table
+
+    from emotive.data.store import verify as verify_dataset
+
+    found = verify_dataset(name, progress=True)
+    if found.clean:
+        typer.echo(f"{found.name}: all {found.files} files in {found.folder} match its archive "
+                   f"({found.hashed_bytes / 1e6:.1f} MB hashed)")
+        return
+    table = Table(title=f"{found.name}: {_summary(found)} of {found.files} files in "
+                        f"{found.folder}")
+    for column in ("problem", "file", "detail"):
+        table.add_column(column, overflow="fold")
+    colours = {"damaged": "red", "missing": "red", "extra": "yellow"}
+    for problem in found.problems[:MAX_ROWS]:
+        table.add_row(f"[{colours[problem.kind]}]{problem.kind}[/]", problem.path, problem.detail)
+    if len(found.problems) > MAX_ROWS:
+        table.add_row("...", f"{len(found.problems) - MAX_ROWS} more", "")
+    Console().print(table)
+    typer.echo(f"fix: run `emotive data fetch {found.name}` to unpack the damaged and missing "
+               "files again and remove the extra ones")
+    raise typer.Exit(1)
 
 
 @app.command()

@@ -99,7 +99,9 @@ def evaluate(
     if out is None:
         out = Path("reports") / subject.name
         check_output_folder(out, "--out")
-    results, info = run_suites(subject, suite, clf, progress=True,
+    # A bar only on a terminal: elsewhere it leaves a blank line before the messages.
+    results, info = run_suites(subject, suite, clf,
+                               progress=Console(stderr=True).is_terminal,
                                requests=standard_requests(clf.labels, seconds))
     folder = write_report(out, subject.name, results, info)
     # The prediction tables are short and are what a user runs this suite for: on the terminal.

@@ -34,7 +34,7 @@ app = typer.Typer(help="Deprecated: use `emotive train fcrbm` and `emotive gener
 
 @app.command("train")
 def train(
-    config: ConfigOpt = Path("configs/fcrbm.toml"),
+    config: ConfigOpt = "fcrbm",
     out: TrainOutOpt = Path("models/fcrbm"),
     resume: ResumeOpt = False,
     seed: SeedOpt = 0,

@@ -140,7 +140,7 @@ def run_generate(model: str, out: Path, emotion: str | Path | None, seconds: flo
     from rich.console import Console
 
     from emotive.data.emotion import coerce_emotion
-    from emotive.io.outputs import PREVIEW_SUFFIXES, check_output
+    from emotive.io.outputs import PREVIEW_SUFFIXES, check_distinct, check_output
     from emotive.models.registry import ModelError, get_model
     from emotive.render.outputs import OUT_SUFFIXES, write_generated
 
@@ -149,6 +149,7 @@ def run_generate(model: str, out: Path, emotion: str | Path | None, seconds: flo
         check_output(npz, (".npz",), "--npz")
     if preview is not None:
         check_output(preview, PREVIEW_SUFFIXES, "--preview")
+    check_distinct([("--out", out), ("--npz", npz), ("--preview", preview)])
     entry = get_model(model)
     given = {k: v for k, v in options.items() if v is not None}
     unknown = [FLAGS.get(k, k) for k in given if k not in entry.option_names]

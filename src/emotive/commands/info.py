@@ -16,8 +16,8 @@ from rich.tree import Tree
 
 from emotive.commands.options import RolesOpt, UnitOpt, out_option, read_input
 from emotive.errors import EmotiveError
-from emotive.io.atomic import atomic_output
-from emotive.io.outputs import check_output
+from emotive.io.atomic import atomic_output, output_transaction
+from emotive.io.outputs import check_distinct, check_output
 
 #: Image formats ``--plot`` accepts.
 PLOT_SUFFIXES = (".png", ".pdf", ".svg")
@@ -163,6 +163,7 @@ def features(
                 f"--plot {plot}: unknown image type {plot.suffix!r}; use one of {PLOT_SUFFIXES}"
             )
         check_output(plot, PLOT_SUFFIXES, "--plot")
+    check_distinct([("--out", out), ("--plot", plot)])
     motion = read_input(file, unit)
     if motion.num_frames == 0:
         raise EmotiveError(f"{file} has no frames: nothing to compute")
@@ -177,8 +178,8 @@ def features(
     n_float = table.shape[1] - 2
     fmt = ["%.9g"] * n_float + ["%d", "%d"]
 
-    with atomic_output(out) as tmp:
-        with open(tmp, "w", newline="\n") as fh:
+    with output_transaction():
+        with atomic_output(out) as tmp, open(tmp, "w", newline="\n") as fh:
             np.savetxt(fh, table, fmt=fmt, delimiter=",", header=header, comments="")
         if plot is not None:
             from emotive.render.plots import plot_features

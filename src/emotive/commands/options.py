@@ -4,7 +4,7 @@ Command-line options shared by several commands, each defined once with one name
 text, and the shared body of the training commands (:func:`run_training`).
 
 Use the options as parameter annotations with the command's own default, e.g.
-``config: ConfigOpt = Path("configs/gait.toml")``. Numeric ranges never clamp: a value out of
+``config: ConfigOpt = "gait"``. Numeric ranges never clamp: a value out of
 range is a one-line error (:func:`emotive.cli.main`).
 """
 
@@ -119,7 +119,8 @@ PrimerOpt = Annotated[
                  show_default=False),
 ]
 ConfigOpt = Annotated[
-    Path, typer.Option("--config", help=r"TOML file with \[model] and \[train] sections.")
+    str, typer.Option("--config", help=r"TOML file with \[model] and \[train] sections, or "
+                      "the name of a shipped recipe (see emotive.configs).")
 ]
 TrainOutOpt = Annotated[
     Path, typer.Option("--out", help="Folder for last.pt, best.pt and log.csv.")
@@ -154,13 +155,15 @@ def deprecated(old: str, new: str) -> None:
 
 
 def run_training(load: Callable[[Path], tuple[Any, Any]], train: Callable[..., Any],
-                 config: Path, out: Path, resume: bool, seed: int, epochs: int | None) -> Any:
+                 config: str | Path, out: Path, resume: bool, seed: int,
+                 epochs: int | None) -> Any:
     """Read a TOML config, override its epochs if given, and train with progress bars.
 
     Args:
         load: reads ``config`` into ``(model config, training settings)``.
         train: ``train(model_config, settings, progress=, out_dir=, resume=, seed=)``.
-        config: the command's ``--config``.
+        config: the command's ``--config``: a TOML file or a shipped recipe's name
+            (:func:`emotive.configs.resolve_config`).
         out: the command's ``--out``.
         resume: the command's ``--resume``.
         seed: the command's ``--seed``.
@@ -175,10 +178,11 @@ def run_training(load: Callable[[Path], tuple[Any, Any]], train: Callable[..., A
     """
     from dataclasses import replace
 
+    from emotive.configs import resolve_config
     from emotive.io.outputs import check_output_folder
 
     check_output_folder(out, "--out")
-    model_config, settings = load(config)
+    model_config, settings = load(resolve_config(config))
     if epochs is not None:
         settings = replace(settings, epochs=epochs)
     try:

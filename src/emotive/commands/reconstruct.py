@@ -83,9 +83,9 @@ def reconstruct(
     from emotive.errors import BVHError, RigError
     from emotive.ik import IKError
     from emotive.ik import reconstruct as ik_reconstruct
+    from emotive.io.atomic import output_transaction
     from emotive.io.motion_files import MOTION_SUFFIXES, write_motion
     from emotive.io.outputs import PREVIEW_SUFFIXES, check_output
-    from emotive.render.outputs import write_all
 
     check_output(out, MOTION_SUFFIXES, "--out")
     if preview is not None:
@@ -106,14 +106,12 @@ def reconstruct(
         raise type(exc)(f"{input}: {exc}") from None
     # The rebuilt clip keeps the input's metadata, so it is written in the input's length unit.
     rebuilt = result.motion
-    writers = [(out, lambda: write_motion(rebuilt, out))]
-    if preview is not None:
-        from emotive.render.preview import render_preview
+    with output_transaction():
+        write_motion(rebuilt, out)
+        if preview is not None:
+            from emotive.render.preview import render_preview
 
-        writers.append((preview, lambda: render_preview(rebuilt, preview,
-                                                        title=f"{input.name} rebuilt",
-                                                        progress=True)))
-    write_all(writers)
+            render_preview(rebuilt, preview, title=f"{input.name} rebuilt", progress=True)
     typer.echo(f"wrote {out}: {summary(result, motion.fps)}")
     if preview is not None:
         console.print(f"wrote {preview}")

@@ -20,7 +20,11 @@ def serve(
                                       "127.0.0.1/localhost needs --token.")] = "127.0.0.1",
     port: Annotated[int, typer.Option("--port", help="TCP port (0: any free one).")] = 8000,
     max_agents: Annotated[int, typer.Option("--max-agents", help="Agents the scene may hold "
-                                            "at once.")] = 500,
+                                            "at once (fewer where the machine cannot "
+                                            "step them in time).")] = 500,
+    max_agents_per_client: Annotated[int, typer.Option(
+        "--max-agents-per-client", help="Agents one connection may have in the scene at "
+        "once.")] = 200,
     token: Annotated[str | None, typer.Option(
         "--token", help="Secret every /api request and the websocket must present "
         "('Authorization: Bearer T' or ?token=T).", show_default=False)] = None,
@@ -45,14 +49,16 @@ def serve(
                          "pip install 'emotive[serve]'") from None
 
     settings = ServeSettings(host=host, port=port, token=token, model=model, backend=backend,
-                             seed=seed, max_agents=max_agents).checked()
+                             seed=seed, max_agents=max_agents,
+                             max_agents_per_client=max_agents_per_client).checked()
     sock = bind(settings.host, settings.port)
     try:
         app = create_app(settings)
         url = base_url(settings.host, bound_port(sock))
         query = f"?token={settings.token}&" if settings.token else "?"
         typer.echo(f"emotive serve: {settings.model} on {settings.backend}, up to "
-                   f"{settings.max_agents} agents")
+                   f"{settings.max_agents} agents ({settings.max_agents_per_client} per "
+                   "client)")
         typer.echo(f"  app:   {url}/{query.rstrip('&?')}")
         typer.echo(f"  demo:  {url}/{query}demo=1")
         typer.echo(f"  ws:    {url.replace('http', 'ws', 1)}/ws  (protocol: docs/serve.md)")

@@ -1,8 +1,9 @@
 """``emotive train gait | quaternet | fcrbm | classifier``: train a model on the real data.
 
-Every model is trained from a TOML config (``--config``) into a folder (``--out``) holding
-``last.pt``, ``best.pt`` and ``log.csv``; Ctrl-C keeps the last finished epoch and
-``--resume`` continues exactly. The classifier trains from ``configs/classifier.toml`` into
+Every model is trained from a TOML config (``--config``: a file, or the name of a recipe
+shipped in :mod:`emotive.configs`, by default the model's own) into a folder (``--out``)
+holding ``last.pt``, ``best.pt`` and ``log.csv``; Ctrl-C keeps the last finished epoch and
+``--resume`` continues exactly. The classifier trains from the ``classifier`` recipe into
 one file and its model card, optionally with the leave-one-studio-out models for the card.
 
 Heavy modules are imported inside the commands so that ``emotive --help`` stays fast.
@@ -43,7 +44,7 @@ def _report(result, out: Path, key: str, loss: str, val: str) -> None:
 
 @app.command("gait")
 def train_gait_command(
-    config: ConfigOpt = Path("configs/gait.toml"),
+    config: ConfigOpt = "gait",
     out: TrainOutOpt = Path("models/gait"),
     resume: ResumeOpt = False,
     seed: SeedOpt = 0,
@@ -58,7 +59,7 @@ def train_gait_command(
 
 @app.command("quaternet")
 def train_quaternet_command(
-    config: ConfigOpt = Path("configs/quaternet.toml"),
+    config: ConfigOpt = "quaternet",
     out: TrainOutOpt = Path("models/quaternet"),
     resume: ResumeOpt = False,
     seed: SeedOpt = 0,
@@ -74,7 +75,7 @@ def train_quaternet_command(
 
 @app.command("fcrbm")
 def train_fcrbm_command(
-    config: ConfigOpt = Path("configs/fcrbm.toml"),
+    config: ConfigOpt = "fcrbm",
     out: TrainOutOpt = Path("models/fcrbm"),
     resume: ResumeOpt = False,
     seed: SeedOpt = 0,
@@ -98,8 +99,9 @@ def train_classifier_command(
         Path, typer.Option("--out", help="Folder for the classifier file and its model card.")
     ] = Path("models/classifier"),
     config: Annotated[
-        Path, typer.Option("--config", help="TOML file of the classifier's config fields.")
-    ] = Path("configs/classifier.toml"),
+        str, typer.Option("--config", help="TOML file of the classifier's config fields, or "
+                          "the name of a shipped recipe.")
+    ] = "classifier",
     seed: Annotated[
         int | None, typer.Option("--seed", help="Random seed (default: the config's).",
                                  min=0, max=SEED_MAX, show_default=False)
@@ -115,11 +117,13 @@ def train_classifier_command(
     ] = True,
 ) -> None:
     """Train the perceived-emotion classifier on real data, measure it, write it and its card."""
+    import hashlib
     import time
     from dataclasses import replace
 
     from rich.console import Console
 
+    from emotive.configs import resolve_config
     from emotive.eval.classifier_card import classifier_card
     from emotive.eval.classifier_training import (
         leave_one_studio_out,
@@ -139,7 +143,7 @@ def train_classifier_command(
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise output_error(out, exc) from exc
-    cfg = read_config(config)
+    cfg = read_config(resolve_config(config))
     cfg = replace(cfg, seed=cfg.seed if seed is None else seed,
                   epochs=cfg.epochs if epochs is None else epochs)
     start = time.perf_counter()
@@ -157,8 +161,9 @@ def train_classifier_command(
     model.metrics["train_seconds"] = time.perf_counter() - start
     path = model.save(out / "emotion-classifier.pt")
     names = {s: sorted({i.name for i in v}) for s, v in data.items()}
+    weights = (path.name, hashlib.sha256(path.read_bytes()).hexdigest())
     with atomic_output(out / "MODEL_CARD.md") as tmp:
-        tmp.write_text(classifier_card(model, names))
+        tmp.write_text(classifier_card(model, names, weights))
     test = model.metrics["test"]
     console.print(
         f"wrote {path} and {out / 'MODEL_CARD.md'}: test window accuracy "

@@ -109,11 +109,11 @@ def transfer(
 
     from emotive.data.emotion import EmotionSchedule
     from emotive.errors import BVHError, OutputError
+    from emotive.io.atomic import output_transaction
     from emotive.io.motion_files import MOTION_SUFFIXES, write_motion
     from emotive.io.outputs import PREVIEW_SUFFIXES, check_output
     from emotive.models.mar.config import TransferError
     from emotive.models.mar.transfer import parse_style, transfer_motion
-    from emotive.render.outputs import write_all
 
     console = Console(stderr=True)
     if input is None:
@@ -151,14 +151,13 @@ def transfer(
         message = str(exc)
         raise type(exc)(message if str(input) in message else f"{input}: {message}") from None
     seconds = time.perf_counter() - start
-    writers = [(out, lambda: write_motion(result.motion, out))]
-    if preview is not None:
-        from emotive.render.preview import render_preview
+    with output_transaction():
+        write_motion(result.motion, out)
+        if preview is not None:
+            from emotive.render.preview import render_preview
 
-        writers.append((preview, lambda: render_preview(result.motion, preview,
-                                                        title=f"{input.name} -> {spec}",
-                                                        progress=True)))
-    write_all(writers)
+            render_preview(result.motion, preview, title=f"{input.name} -> {spec}",
+                           progress=True)
     n_in, n_out = motion.num_frames, result.motion.num_frames
     typer.echo(
         f"wrote {out}: {n_in} frames -> {n_out} frames ({result.motion.duration:.2f} s) in "

@@ -4,7 +4,9 @@ Modules:
 
 * :mod:`~emotive.data.registry` -- known data sets, their archives, checksums and license.
 * :mod:`~emotive.data.store` -- where data lives (``$EMOTIVE_HOME``, ``$EMOTIVE_DATA``,
-  ``../shared/data``), fetching, checking and unpacking; :func:`dataset_dir`.
+  ``../shared/data``), fetching, checking, unpacking, verifying and repairing;
+  :func:`dataset_dir`.
+* :mod:`~emotive.data.manifest` -- each unpacked file's size and sha256, from the archive.
 * :mod:`~emotive.data.clips` -- labelled clips, loading through a preprocessing cache.
 * :mod:`~emotive.data.splits` -- deterministic train/val/test split by clip.
 * :mod:`~emotive.data.windows` -- fixed-length windows, resampling, mirror augmentation.

@@ -5,19 +5,26 @@ kind of member (symbolic and hard links, devices, FIFOs) and every name that is 
 ``..`` or lies outside the data set's folder, all before anything is written. :func:`unpack`
 then writes the members itself, never following a link, instead of trusting
 :meth:`tarfile.TarFile.extractall` (whose ``data`` filter lets a chain of links inside the tree
-write outside it on Pythons without the 2025 :mod:`tarfile` fixes).
+write outside it on Pythons without the 2025 :mod:`tarfile` fixes). It hashes every file's
+bytes as it writes them, for the data set's manifest (:mod:`emotive.data.manifest`).
+:func:`scan` reads an archive once from start to end, with the same checks, to hash every file
+and write only some (a repair), decompressing the archive a single time; it checks each member
+as it meets it, so what it writes stays in a temporary folder until the whole archive passed.
 """
 
 from __future__ import annotations
 
 import errno
 import gzip
+import hashlib
 import lzma
 import os
 import shutil
 import tarfile
 import zlib
+from collections.abc import Container
 from pathlib import Path
+from typing import BinaryIO
 
 from emotive.errors import DataError
 
@@ -33,7 +40,8 @@ _KINDS = {
     tarfile.FIFOTYPE: "a FIFO",
 }
 _NO_SPACE = (errno.ENOSPC, errno.EDQUOT)
-_READ_ONLY = (errno.EROFS, errno.EACCES, errno.EPERM)
+#: Errors of a folder that may not be written.
+READ_ONLY_ERRNOS = (errno.EROFS, errno.EACCES, errno.EPERM)
 
 
 def disk_error(exc: OSError, folder: Path, doing: str) -> DataError:
@@ -54,7 +62,7 @@ def disk_error(exc: OSError, folder: Path, doing: str) -> DataError:
             f"no space left on the disk holding {folder} while {doing} ({reason}); free some "
             f"space, or set EMOTIVE_HOME to a folder on a larger disk, and run the command again"
         )
-    if isinstance(exc, PermissionError) or exc.errno in _READ_ONLY:
+    if isinstance(exc, PermissionError) or exc.errno in READ_ONLY_ERRNOS:
         return DataError(
             f"cannot write to {folder} while {doing} ({reason}): the cache is read-only; set "
             f"EMOTIVE_HOME to a writable folder, or make {folder} writable"
@@ -101,7 +109,27 @@ def check_members(members: list[tarfile.TarInfo], folder: str, archive: str, fix
         )
 
 
-def unpack(tar: tarfile.TarFile, members: list[tarfile.TarInfo], dest: Path) -> None:
+class HashingReader:
+    """A binary file whose reads also update a sha256 (:attr:`digest`).
+
+    Args:
+        fh: the file to read.
+    """
+
+    def __init__(self, fh: BinaryIO) -> None:
+        self.fh = fh
+        self.digest = hashlib.sha256()
+
+    def read(self, size: int = -1) -> bytes:
+        """Read up to ``size`` bytes (all when negative) and hash them."""
+        block = self.fh.read(size)
+        self.digest.update(block)
+        return block
+
+
+def unpack(
+    tar: tarfile.TarFile, members: list[tarfile.TarInfo], dest: Path
+) -> dict[str, str]:
     """Write checked members (see :func:`check_members`) into the empty folder ``dest``.
 
     Folders get mode ``0o755`` and files ``0o644`` whatever the archive says; a file is opened
@@ -112,33 +140,102 @@ def unpack(tar: tarfile.TarFile, members: list[tarfile.TarInfo], dest: Path) -> 
         members: its checked members.
         dest: an empty folder owned by this process.
 
+    Returns:
+        The hex sha256 of the bytes written for each regular member, by member name.
+
     Raises:
         DataError: a member would land outside ``dest`` (cannot happen after the check).
         OSError: a write fails (full disk, read-only folder): the caller reports it.
     """
     root = os.path.realpath(dest)
+    hashes = {}
     for member in members:
         try:
-            _unpack_one(tar, member, dest, root)
+            digest = _unpack_one(tar, member, dest, root)
         except (FileExistsError, NotADirectoryError, IsADirectoryError):
             raise DataError(
                 f"archive member {member.name!r} clashes with another member of the same path: "
                 f"it is not a data set archive; fetch it again"
             ) from None
+        if digest is not None:
+            hashes[member.name] = digest
+    return hashes
 
 
-def _unpack_one(tar: tarfile.TarFile, member: tarfile.TarInfo, dest: Path, root: str) -> None:
-    """Write one checked member into ``dest`` (whose real path is ``root``)."""
+def scan(
+    fh: BinaryIO, folder: str, archive: str, fix: str, *,
+    dest: Path | None = None, wanted: Container[str] = (),
+) -> tuple[list[tarfile.TarInfo], dict[str, str]]:
+    """Read an archive once, start to end: check, hash and (some) write every member.
+
+    Every member is checked as :func:`check_members` does, every regular member hashed, and
+    the regular members named in ``wanted`` written below ``dest`` as :func:`unpack` writes
+    them. A member refused after others were written leaves those in ``dest``, which the
+    caller then discards.
+
+    Args:
+        fh: the open archive at its start (any compression :mod:`tarfile` reads).
+        folder: the one top-level folder every member must lie in.
+        archive: the archive, named in errors.
+        fix: what the user should do, appended to errors.
+        dest: an empty folder owned by this process; ``None`` writes nothing.
+        wanted: member names of the files to write.
+
+    Returns:
+        Every member, and the hex sha256 of each regular member's bytes by member name.
+
+    Raises:
+        DataError: as :func:`check_members`.
+        tarfile.TarError, EOFError, zlib.error, ...: the stream is damaged
+            (:data:`CORRUPT_STREAM_ERRORS`).
+        OSError: a write fails.
+    """
+    members, hashes = [], {}
+    root = os.path.realpath(dest) if dest is not None else ""
+    with tarfile.open(fileobj=fh, mode="r|*") as tar:
+        for member in tar:
+            problem = _member_problem(member, folder)
+            if problem is not None:
+                raise DataError(f"archive {archive} member {member.name!r} {problem}; {fix}")
+            members.append(member)
+            if not member.isreg():
+                continue
+            if dest is not None and member.name in wanted:
+                hashes[member.name] = _unpack_one(tar, member, dest, root)
+            else:
+                reader = HashingReader(_member_data(tar, member))
+                with reader.fh:
+                    while reader.read(_CHUNK):
+                        pass
+                hashes[member.name] = reader.digest.hexdigest()
+    check_members(members, folder, archive, fix)
+    return members, hashes
+
+
+def _member_data(tar: tarfile.TarFile, member: tarfile.TarInfo) -> BinaryIO:
+    source = tar.extractfile(member)
+    if source is None:
+        raise DataError(f"archive member {member.name!r} has no data")
+    return source
+
+
+def _unpack_one(
+    tar: tarfile.TarFile, member: tarfile.TarInfo, dest: Path, root: str
+) -> str | None:
+    """Write one checked member into ``dest`` (whose real path is ``root``).
+
+    Returns:
+        The hex sha256 of a file's bytes, ``None`` for a folder.
+    """
     path = dest.joinpath(*member.name.rstrip("/").split("/"))
     folder = path if member.isdir() else path.parent
     folder.mkdir(mode=0o755, parents=True, exist_ok=True)
     if os.path.commonpath([root, os.path.realpath(folder)]) != root:
         raise DataError(f"archive member {member.name!r} would be written outside {dest}")
     if member.isdir():
-        return
-    source = tar.extractfile(member)
-    if source is None:
-        raise DataError(f"archive member {member.name!r} has no data")
+        return None
+    reader = HashingReader(_member_data(tar, member))
     flags = os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_NOFOLLOW | os.O_CLOEXEC
-    with source, open(os.open(path, flags, 0o644), "wb") as out:
-        shutil.copyfileobj(source, out, _CHUNK)
+    with reader.fh, open(os.open(path, flags, 0o644), "wb") as out:
+        shutil.copyfileobj(reader, out, _CHUNK)
+    return reader.digest.hexdigest()

@@ -95,3 +95,33 @@ def file_lock(
             path.unlink(missing_ok=True)
         finally:
             os.close(fd)
+
+
+@contextmanager
+def try_file_lock(path: str | os.PathLike) -> Iterator[bool]:
+    """Hold the lock on ``path`` (see :func:`file_lock`) if nobody holds it now; never wait.
+
+    Args:
+        path: the lock file; its folder must exist.
+
+    Yields:
+        Whether the lock is held inside the block.
+
+    Raises:
+        OSError: the lock file cannot be created (a read-only cache).
+    """
+    if fcntl is None:  # pragma: no cover
+        yield False
+        return
+    path = Path(path)
+    fd = _try_lock(path)
+    if fd is None:
+        yield False
+        return
+    try:
+        yield True
+    finally:
+        try:
+            path.unlink(missing_ok=True)
+        finally:
+            os.close(fd)

@@ -80,7 +80,18 @@ from emotive.features.affective import affective_features_np, role_indices
 from emotive.features.contacts import foot_contacts, leg_length
 from emotive.features.movement import facing_directions, movement_features
 from emotive.io.atomic import atomic_output
-from emotive.models.training import check_values, load_weights, read_checkpoint, require_keys
+from emotive.models.checkpoint_checks import (
+    FPS_RANGE,
+    LOSS_WEIGHT_RANGE,
+    SEED_RANGE,
+    WEIGHT_LIMIT,
+    WIDTH_RANGE,
+    Range,
+    build_weights,
+    check_fields,
+    check_tensor,
+)
+from emotive.models.training import MAX_MAGNITUDE, read_checkpoint, require_keys
 
 
 class ClassifierError(EmotiveError):
@@ -104,6 +115,33 @@ SHARED_STYLES: tuple[str, ...] = (
 )
 #: Version written by :meth:`EmotionClassifier.save`.
 FILE_FORMAT = "emotive-emotion-classifier/2"
+#: Largest magnitude of a network weight: the shipped network's largest is 0.22 (``aux``), so
+#: this is 135 times the trained range
+#: (:data:`~emotive.models.checkpoint_checks.WEIGHT_LIMIT` explains the choice). The feature
+#: statistics (largest 4.05) keep the default bound.
+NET_WEIGHT_LIMIT = 30.0
+#: The entries of a file of :meth:`EmotionClassifier.save`.
+FILE_ENTRIES = ("format", "config", "state", "mean", "std", "metrics", "temperature",
+                "embedding_mean", "embedding_precision", "unsure_distance")
+#: Plausible values of :class:`ClassifierConfig`'s numeric fields, checked with their types by
+#: :func:`~emotive.models.checkpoint_checks.check_fields` (a TOML file's or a checkpoint's).
+CONFIG_RANGES: dict[str, Range] = {
+    "fps": FPS_RANGE, "min_seconds": Range(0, 60, above=True),
+    "max_seconds": Range(0, 600, above=True), "channels": WIDTH_RANGE,
+    "graph_channels": WIDTH_RANGE, "affect_channels": WIDTH_RANGE, "blocks": Range(1, 64),
+    "graph_blocks": Range(1, 64), "dropout": Range(0, 1), "augment_copies": Range(0, 1000),
+    "valence_arousal_weight": LOSS_WEIGHT_RANGE, "style_weight": LOSS_WEIGHT_RANGE,
+    "epochs": Range(1, 1_000_000), "steps_per_epoch": Range(1, 1_000_000),
+    "batch_size": Range(1, 100_000), "learning_rate": Range(0, 10, above=True),
+    "weight_decay": Range(0, 10), "unsure_quantile": Range(0, 1, above=True),
+    "seed": SEED_RANGE,
+}
+#: Plausible values of :class:`~emotive.eval.classifier_augment.AugmentConfig`'s fields.
+AUGMENT_RANGES: dict[str, Range] = {
+    "height_m": Range(0.3, 3.0), "segment_scale": Range(0, 0.9), "layout_shift": Range(0, 1),
+    "fallback_probability": Range(0, 1), "mirror_probability": Range(0, 1),
+    "frame_rates": FPS_RANGE,
+}
 
 
 @dataclass(frozen=True)
@@ -165,6 +203,10 @@ class ClassifierConfig:
     seed: int = 0
 
     def __post_init__(self) -> None:
+        try:
+            check_fields(self)
+        except ValueError as exc:
+            raise ClassifierError(str(exc)) from None
         object.__setattr__(self, "labels", check_labels(self.labels))
         object.__setattr__(self, "datasets", tuple(self.datasets))
         object.__setattr__(self, "style_labels", tuple(self.style_labels))
@@ -178,6 +220,11 @@ class ClassifierConfig:
         if unknown:
             raise ClassifierError(f"style_labels {unknown} are not shared styles; choose from "
                                   f"{list(SHARED_STYLES)}")
+        try:
+            check_fields(self, CONFIG_RANGES)
+            check_fields(self.augment, AUGMENT_RANGES)
+        except ValueError as exc:
+            raise ClassifierError(str(exc)) from None
 
     @classmethod
     def from_dict(cls, values: dict) -> ClassifierConfig:
@@ -504,10 +551,14 @@ class EmotionClassifier:
     def load(cls, path: str | Path) -> EmotionClassifier:
         """Read a file written by :meth:`save`, checked entry by entry.
 
-        The weights are checked tensor by tensor (keys and shapes of the config's network,
-        finite values of a plausible size); ``mean`` and ``std`` must be ``(F,)``, finite, the
-        ``std`` above 0; the temperature above 0; the embedding statistics ``(E,)`` and
-        ``(E, E)``; ``metrics`` a JSON text.
+        The config is checked field by field (types, finite, :data:`CONFIG_RANGES`), the
+        weights tensor by tensor before the network is built (keys, dtypes and shapes of the
+        config's network, finite values within the trained range:
+        :func:`~emotive.models.checkpoint_checks.build_weights`); ``mean`` and ``std`` must be
+        float32 ``(F,)`` within that range, the ``std`` above 0; the temperature above 0; the
+        embedding statistics float64 ``(E,)`` and ``(E, E)``; ``metrics`` a JSON text; no
+        other entry (:data:`FILE_ENTRIES`). The shipped file must match the fingerprint of its
+        model card.
 
         Raises:
             ClassifierFileError: missing, a folder, unreadable, or not a usable classifier
@@ -520,7 +571,7 @@ class EmotionClassifier:
         try:
             return read_checkpoint(path, "a valid emotive classifier", _build,
                                    "train one with `emotive train classifier` or use the "
-                                   "built-in one")[0]
+                                   "built-in one", FILE_ENTRIES)[0]
         except ConfigError as exc:
             raise ClassifierFileError(f"classifier file {exc}") from None
 
@@ -536,27 +587,33 @@ def _build(payload: dict) -> EmotionClassifier:
                            "embedding_precision": torch.Tensor,
                            "unsure_distance": torch.Tensor})
     config = ClassifierConfig.from_dict(payload["config"])
-    net = build_net(config)
-    load_weights(net, payload["state"])
-    stats = {}
-    for name in ("mean", "std"):
-        value = payload[name]
-        if tuple(value.shape) != (NUM_FEATURES,):
-            raise ValueError(f"{name!r} has shape {tuple(value.shape)}, not ({NUM_FEATURES},)")
-        check_values(value, repr(name), positive=name == "std")
-        stats[name] = value.numpy().astype(np.float32)
+    net = build_weights(lambda: build_net(config), payload["state"], limit=NET_WEIGHT_LIMIT)
     width = net.out.in_features
-    for name, shape in (("embedding_mean", (width,)), ("embedding_precision", (width, width))):
-        if tuple(payload[name].shape) != shape:
-            raise ValueError(f"{name!r} has shape {tuple(payload[name].shape)}, not {shape}")
-        check_values(payload[name], repr(name))
+    # The embedding's inverse covariance grows as its spread shrinks: only bounded loosely.
+    for name, dtype, shape, limit in (
+        ("mean", torch.float32, (NUM_FEATURES,), WEIGHT_LIMIT),
+        ("std", torch.float32, (NUM_FEATURES,), WEIGHT_LIMIT),
+        ("embedding_mean", torch.float64, (width,), WEIGHT_LIMIT),
+        ("embedding_precision", torch.float64, (width, width), MAX_MAGNITUDE),
+        ("temperature", torch.float64, (), MAX_MAGNITUDE),
+    ):
+        check_tensor(payload[name], torch.empty(shape, dtype=dtype, device="meta"), repr(name),
+                     std=name == "std", limit=limit)
+    unsure_value = payload["unsure_distance"]
+    if unsure_value.dtype != torch.float64 or unsure_value.shape != ():
+        raise ValueError(f"'unsure_distance' is a {unsure_value.dtype} tensor of shape "
+                         f"{tuple(unsure_value.shape)}, not one float64 number")
+    stats = {name: payload[name].numpy().astype(np.float32) for name in ("mean", "std")}
     temperature = float(payload["temperature"])
     if not (math.isfinite(temperature) and temperature > 0):
         raise ValueError(f"'temperature' is {temperature}, not a positive number")
     unsure = float(payload["unsure_distance"])
     if not unsure > 0:
         raise ValueError(f"'unsure_distance' is {unsure}, not a positive number")
-    metrics = json.loads(payload["metrics"])
+    try:
+        metrics = json.loads(payload["metrics"])
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"'metrics' is not a JSON text ({exc})") from None
     if not isinstance(metrics, dict):
         raise ValueError(f"'metrics' holds a {type(metrics).__name__}, not a JSON object")
     net.eval()

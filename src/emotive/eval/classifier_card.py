@@ -141,12 +141,15 @@ def _unsure(rates: dict, quantile: float) -> list[str]:
     ]
 
 
-def classifier_card(model: EmotionClassifier, clips: dict[str, Sequence[str]]) -> str:
+def classifier_card(model: EmotionClassifier, clips: dict[str, Sequence[str]],
+                    weights: tuple[str, str] | None = None) -> str:
     """Markdown model card of a trained perceived-emotion classifier.
 
     Args:
         model: the classifier with its ``metrics`` (see the module docstring).
         clips: clip names by split, as trained (augmented variants not repeated).
+        weights: ``(file name, sha256)`` of the saved weights: the card's fingerprint line,
+            which a shipped copy is checked against when loaded.
     """
     cfg, m = model.config, model.metrics
     out = [
@@ -235,4 +238,16 @@ def classifier_card(model: EmotionClassifier, clips: dict[str, Sequence[str]]) -
         "fights) is outside what it has seen and should read as unsure.",
         "",
     ]
+    if weights is not None:
+        out += [
+            "## Weights fingerprint",
+            "",
+            "Loading a weight file of this folder checks its sha256 against its line below "
+            "and refuses a file that differs (damaged or replaced: reinstall emotive). "
+            "Checkpoints you train have no card; they rely on their archive's CRC-32 and the "
+            "tensor checks instead.",
+            "",
+            f"- sha256 of `{weights[0]}`: `{weights[1]}`",
+            "",
+        ]
     return "\n".join(out)

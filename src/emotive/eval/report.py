@@ -1,8 +1,9 @@
 """Evaluation reports: ``report.md``, ``metrics.json`` and PNG plots in one folder.
 
 The files are made in a temporary folder beside the destination, flushed to the disk and moved
-in only when all of them are written, so a failed run leaves the destination as it was; a
-write fault is one :class:`~emotive.errors.OutputError`.
+in only when all of them are written (:func:`emotive.io.atomic.output_transaction`), so a
+failed run leaves the destination as it was; a write fault is one
+:class:`~emotive.errors.OutputError`.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from emotive.io.atomic import output_error
+from emotive.io.atomic import atomic_output, output_error, output_transaction
 
 #: Keys of suite results that feed the plots but are too bulky for ``metrics.json``.
 _PLOT_ONLY = ("trajectory", "path")
@@ -289,16 +290,12 @@ def _write_into(out: Path, title: str, results: dict[str, dict], info: dict[str,
              "suites": {name: _strip(result) for name, result in results.items()}},
             indent=2, default=float,
         ))
-        # Every file is on the disk before any replaces an older one.
-        for file in tmp.iterdir():
-            fd = os.open(file, os.O_RDONLY)
-            try:
-                os.fsync(fd)
-            finally:
-                os.close(fd)
         out.mkdir(exist_ok=True)
-        for file in tmp.iterdir():
-            os.replace(file, out / file.name)
+        # All or none: every file is on the disk before any replaces an older one.
+        with output_transaction():
+            for file in sorted(tmp.iterdir()):
+                with atomic_output(out / file.name) as staged:
+                    os.replace(file, staged)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
 

@@ -11,7 +11,14 @@ keep the clip's rotations (:func:`link_transforms`), and knee and elbow hinges c
 from the straight limb whatever the rig's joint frames.
 """
 
-from emotive.ik.api import IKResult, pin_feet, rebuild, reconstruct, solve_chains
+from emotive.ik.api import (
+    IKResult,
+    pin_feet,
+    pin_feet_two_bone,
+    rebuild,
+    reconstruct,
+    solve_chains,
+)
 from emotive.ik.chains import (
     CHAIN_NAMES,
     CHAIN_SPECS,
@@ -55,6 +62,7 @@ __all__ = [
     "link_transforms",
     "pelvis_trajectory",
     "pin_feet",
+    "pin_feet_two_bone",
     "rebuild",
     "reconstruct",
     "resolve_chains",

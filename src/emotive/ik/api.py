@@ -15,6 +15,7 @@ import numpy as np
 from emotive.core.motion import Motion
 from emotive.core.roles import resolve_roles
 from emotive.ik.chains import Chain, IKError, link_transforms, resolve_chains
+from emotive.ik.foot_lock import leg_rig, move_ankles
 from emotive.ik.solver import Unreachable, single_thread, solve_chain
 from emotive.ik.trajectories import Trajectories, extract_trajectories, integrate_pelvis, to_world
 from emotive.transforms.kinematics import forward_kinematics_np
@@ -262,18 +263,103 @@ def pin_feet(
     if chains is None:
         chains = resolve_chains(motion.skeleton, motion, role_map, names=names)
     pts = motion.positions_with_end_sites()
-    targets = {}
-    for side, name in enumerate(names):
-        chain = chains[name]
-        world = pts[:, chain.targets]
-        delta = np.zeros_like(world)
-        for a, b in _contact_runs(contacts[:, side]):
-            delta[a:b] = world[a:b].mean(0) - world[a:b]
-            for i in range(1, blend + 1):
-                w = 1.0 - i / (blend + 1)
-                if a - i >= 0 and not contacts[a - i, side]:
-                    delta[a - i] = w * delta[a]
-                if b - 1 + i < n and not contacts[b - 1 + i, side]:
-                    delta[b - 1 + i] = w * delta[b - 1]
-        targets[name] = world + delta
+    targets = {name: _pinned(pts[:, chains[name].targets], contacts[:, side], blend)
+               for side, name in enumerate(names)}
     return solve_chains(motion, targets, chains, frame="world", init="motion", **solver)
+
+
+def _pinned(world: np.ndarray, contact: np.ndarray, blend: int) -> np.ndarray:
+    """``(T, M, 3)`` targets: each contact run's points held at their mean, faded at the ends.
+
+    Args:
+        world: ``(T, M, 3)`` world positions of one foot's target points.
+        contact: ``(T,)`` bool, the foot's contacts.
+        blend: frames over which the correction fades out either side of a run.
+    """
+    delta = np.zeros_like(world)
+    for a, b in _contact_runs(contact):
+        delta[a:b] = world[a:b].mean(0) - world[a:b]
+    return world + fade_out(delta, contact, blend)
+
+
+def fade_out(delta: np.ndarray, contact: np.ndarray, blend: int) -> np.ndarray:
+    """Corrections of contact runs continued, fading linearly, over ``blend`` frames either side.
+
+    Args:
+        delta: ``(T, ...)`` a correction per frame, set inside the runs of ``contact``.
+        contact: ``(T,)`` bool.
+        blend: frames of the fade; the ``i``-th frame out of a run takes ``1 - i / (blend +
+            1)`` of the run's first (before it) or last (after it) correction.
+
+    Returns:
+        A copy of ``delta`` with the faded corrections outside the runs.
+    """
+    n = len(delta)
+    delta = delta.copy()
+    for a, b in _contact_runs(contact):
+        for i in range(1, blend + 1):
+            w = 1.0 - i / (blend + 1)
+            if a - i >= 0 and not contact[a - i]:
+                delta[a - i] = w * delta[a]
+            if b - 1 + i < n and not contact[b - 1 + i]:
+                delta[b - 1 + i] = w * delta[b - 1]
+    return delta
+
+
+def pin_feet_two_bone(motion: Motion, contacts: np.ndarray, *, blend: int = 4,
+                      role_map: RoleMap = None) -> Motion:
+    """:func:`pin_feet` by the foot lock's analytic two-bone solve, all frames at once.
+
+    The same targets (each planted heel and toe held at its mean over the contact run,
+    faded over ``blend`` frames), met by :func:`emotive.ik.foot_lock.move_ankles`: the heel
+    lands on its target (an ankle the straight leg cannot reach is lifted until it can, so
+    no frame is thrown off), the foot turns about the vertical so that its toe points at
+    the toe's target, and the knee stays in its bending plane. Much cheaper than the damped
+    least squares of :func:`pin_feet` and exact in the heel, but it holds the toe only in
+    heading, not in height or pitch.
+
+    Args:
+        motion: the clip, on a rig whose hip, knee and ankle are parent and child.
+        contacts: ``(T, 2)`` bool, columns left and right foot.
+        blend: frames over which the correction fades in and out.
+        role_map: as for :func:`emotive.core.roles.resolve_roles`.
+
+    Returns:
+        The clip with its planted feet held.
+
+    Raises:
+        IKError: ``contacts`` is not ``(T, 2)``, or the legs have joints between hip, knee
+            and ankle (use :func:`pin_feet`).
+    """
+    contacts = np.asarray(contacts, dtype=bool)
+    n = motion.num_frames
+    if contacts.shape != (n, 2):
+        raise IKError(f"contacts must have shape ({n}, 2) (left, right), got {contacts.shape}")
+    roles = resolve_roles(motion.skeleton, role_map)
+    points = motion.positions_with_end_sites()
+    try:
+        legs = leg_rig(motion.skeleton, roles, points[0])
+    except ValueError as exc:
+        raise IKError(f"{exc}; pin_feet solves any leg") from None
+    shift = np.zeros((n, 2, 3))
+    yaw = np.zeros((n, 2))
+    for side, prefix in enumerate(("l", "r")):
+        feet = points[:, roles.indices((f"{prefix}_ankle", f"{prefix}_toe"))]
+        targets = _pinned(feet, contacts[:, side], blend)
+        shift[:, side] = targets[:, 0] - feet[:, 0]
+        turn = _heading(targets) - _heading(feet)
+        flat = np.linalg.norm((targets[:, 1] - targets[:, 0])[:, [0, 2]], axis=-1)
+        yaw[:, side] = np.where(flat > 1e-5, np.angle(np.exp(1j * turn)), 0.0)
+    moving = (np.abs(shift).max(axis=(1, 2)) > 1e-9) | (np.abs(yaw).max(axis=1) > 1e-9)
+    if not moving.any():
+        return motion
+    rotations = motion.rotations.copy()
+    rotations[moving], _ = move_ankles(legs, rotations[moving], points[moving],
+                                       shift[moving], yaw[moving])
+    return motion.replace(rotations=rotations)
+
+
+def _heading(feet: np.ndarray) -> np.ndarray:
+    """``(T,)`` world heading (radians, 0 facing +Z) of heel -> toe, ``(T, 2, 3)`` points."""
+    d = feet[:, 1] - feet[:, 0]
+    return np.arctan2(d[:, 0], d[:, 2])

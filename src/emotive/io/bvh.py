@@ -6,16 +6,16 @@ line ends, tabs, scientific notation and zero-frame files. Every problem raises
 :class:`~emotive.core.Motion` is ever returned. Lengths are converted to metres on reading
 (``unit``, detected from the figure's height by default) and back to the file's unit on
 writing; rotations become unit quaternions ``w, x, y, z``. Only regular files are read (a
-pipe or device is refused at once) and implausible numbers are refused before anything large
-is allocated: the limits are in :mod:`emotive.io.bvh_limits` and ``docs/limits.md``.
+pipe or device is refused at once), a line at a time within the size budget of
+:mod:`emotive.io.bvh_text` (so a huge line or row is refused after at most 1 MiB), and
+implausible numbers and sizes are refused before anything large is allocated: the limits are
+in :mod:`emotive.io.bvh_limits` and ``docs/limits.md``.
 """
 
 from __future__ import annotations
 
-import io
 import os
 import re
-import stat
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -24,18 +24,20 @@ import numpy as np
 from emotive.core.motion import Motion
 from emotive.core.skeleton import POSITION_CHANNELS, ROTATION_CHANNELS, Skeleton
 from emotive.errors import BVHError
+from emotive.io import bvh_limits
 from emotive.io.atomic import atomic_output
 from emotive.io.bvh_limits import (
-    MAX_FILE_BYTES,
-    MAX_JOINTS,
     UNITS,
     angle_problem,
     detect_unit,
     frame_time_problem,
+    height_problem,
     length_problem,
+    quote,
     size_problem,
     standing_height,
 )
+from emotive.io.bvh_text import BVHLines, HierarchyWords, open_bvh_text
 from emotive.transforms.np_rotations import euler_to_quaternion, quaternion_to_euler
 
 _VALID_CHANNELS = set(POSITION_CHANNELS) | set(ROTATION_CHANNELS)
@@ -51,109 +53,13 @@ class _Joint:
     end_sites: list[np.ndarray] = field(default_factory=list)
 
 
-class _Tokens:
-    """Whitespace tokens of the header with their 1-based line numbers."""
-
-    def __init__(self, path: str, lines: list[str]) -> None:
-        self.path = path
-        self.items = [(tok, n + 1) for n, line in enumerate(lines) for tok in line.split()]
-        self.pos = 0
-
-    @property
-    def line(self) -> int:
-        if self.pos < len(self.items):
-            return self.items[self.pos][1]
-        return self.items[-1][1] if self.items else 1
-
-    def error(self, problem: str) -> BVHError:
-        return BVHError(self.path, self.line, problem)
-
-    def next(self, what: str) -> str:
-        if self.pos >= len(self.items):
-            raise self.error(f"file ends early while reading {what}: the file looks truncated")
-        tok = self.items[self.pos][0]
-        self.pos += 1
-        return tok
-
-    def expect(self, word: str) -> None:
-        tok = self.next(f"'{word}'")
-        if tok != word:
-            self.pos -= 1
-            raise self.error(f"expected '{word}' but found '{tok}'")
-
-    def number(self, what: str) -> float:
-        tok = self.next(what)
-        try:
-            value = float(tok)
-        except ValueError:
-            self.pos -= 1
-            raise self.error(f"{what} must be a number, found '{tok}'") from None
-        if not np.isfinite(value):
-            self.pos -= 1
-            raise self.error(f"{what} must be finite, found '{tok}'")
-        return value
-
-    def peek(self) -> str | None:
-        return self.items[self.pos][0] if self.pos < len(self.items) else None
-
-
-def _read_bytes(path: Path) -> bytes:
-    """The bytes of a regular file; anything else is refused before it is opened."""
-    try:
-        info = os.stat(path)
-    except FileNotFoundError:
-        raise BVHError(path, None, "no such file: check the path") from None
-    except OSError as exc:
-        raise BVHError(path, None, f"cannot be read ({exc.strerror})") from None
-    if stat.S_ISDIR(info.st_mode):
-        raise BVHError(path, None, "is a directory, not a BVH file: pass the path of a .bvh file")
-    try:
-        # Non-blocking, then checked again on the open file: a FIFO swapped in after the
-        # stat above must not block the read.
-        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_BINARY", 0))
-    except OSError as exc:
-        raise BVHError(path, None, f"cannot be read ({exc.strerror})") from None
-    with os.fdopen(fd, "rb") as fh:
-        info = os.fstat(fh.fileno())
-        if not stat.S_ISREG(info.st_mode):
-            raise BVHError(
-                path, None,
-                "is not a regular file (a pipe, socket or device): save the BVH to a file first",
-            )
-        if info.st_size > MAX_FILE_BYTES:
-            raise BVHError(
-                path, None,
-                f"is {info.st_size:,} bytes: at most {MAX_FILE_BYTES:,} are read; split the clip",
-            )
-        try:
-            # No size given: read(n) would reserve n bytes up front.
-            return fh.read()
-        except OSError as exc:
-            raise BVHError(path, None, f"cannot be read ({exc.strerror})") from None
-
-
-def _read_text(path: Path) -> str:
-    raw = _read_bytes(path)
-    if len(raw) > MAX_FILE_BYTES:
-        raise BVHError(path, None, f"grew past {MAX_FILE_BYTES:,} bytes while being read")
-    if b"\x00" in raw[:4096]:
-        raise BVHError(path, None, "is a binary file, not a BVH text file")
-    if raw.startswith(b"\xef\xbb\xbf"):
-        raw = raw[3:]
-    try:
-        return raw.decode("utf-8")
-    except UnicodeDecodeError:
-        return raw.decode("latin-1")
-
-
-def _parse_channels(tokens: _Tokens, name: str) -> tuple[str, ...]:
+def _parse_channels(tokens: HierarchyWords, name: str) -> tuple[str, ...]:
     """The channels of joint ``name``, read after its ``CHANNELS`` keyword."""
-    chan_line = tokens.items[tokens.pos - 1][1]
+    chan_line = tokens.last_line
     count_tok = tokens.next("the channel count")
     if count_tok not in ("3", "6"):
-        tokens.pos -= 1
-        raise tokens.error(
-            f"joint '{name}' has CHANNELS {count_tok}: only 3 (rotations) or "
+        raise tokens.error_at_last(
+            f"joint {quote(name)} has {quote('CHANNELS ' + count_tok)}: only 3 (rotations) or "
             "6 (positions and rotations) channels per joint are supported"
         )
     chans = tuple(tokens.next("a channel name") for _ in range(int(count_tok)))
@@ -162,33 +68,33 @@ def _parse_channels(tokens: _Tokens, name: str) -> tuple[str, ...]:
     if bad or len(set(chans)) != len(chans) or len(set(rot)) != 3:
         raise BVHError(
             tokens.path, chan_line,
-            f"joint '{name}' has invalid channels {' '.join(chans)}: use three "
+            f"joint {quote(name)} has invalid channels {quote(' '.join(chans))}: use three "
             "distinct rotation channels (and optionally the three position channels)"
         )
     return chans
 
 
-def _parse_end_site(tokens: _Tokens, name: str) -> np.ndarray:
+def _parse_end_site(tokens: HierarchyWords, name: str) -> np.ndarray:
     """The ``(3,)`` offset of an end site of joint ``name``, read after its ``End`` keyword."""
     tokens.expect("Site")
     tokens.expect("{")
     tokens.expect("OFFSET")
-    offset = np.array([tokens.number(f"End Site OFFSET of '{name}'") for _ in range(3)])
+    offset = np.array([tokens.number(f"End Site OFFSET of {quote(name)}") for _ in range(3)])
     tokens.expect("}")
     return offset
 
 
-def _unexpected_in_joint(tokens: _Tokens, tok: str, name: str) -> BVHError:
-    """The error for token ``tok`` where the body of joint ``name`` expects a keyword."""
+def _unexpected_in_joint(tokens: HierarchyWords, tok: str, name: str) -> BVHError:
+    """The error for word ``tok``, just read, where joint ``name``'s body expects a keyword."""
     if tok in ("MOTION", "ROOT"):
-        return tokens.error(
-            f"joint '{name}' is not closed: a '}}' is missing before {tok} "
+        return tokens.error_at_last(
+            f"joint {quote(name)} is not closed: a '}}' is missing before {tok} "
             "(unbalanced braces)"
         )
-    return tokens.error(f"unexpected '{tok}' in joint '{name}'")
+    return tokens.error_at_last(f"unexpected {quote(tok)} in joint {quote(name)}")
 
 
-def _expect_motion(tokens: _Tokens) -> None:
+def _expect_motion(tokens: HierarchyWords) -> None:
     """Check that the ``MOTION`` part follows the (single) hierarchy."""
     nxt = tokens.peek()
     if nxt == "ROOT":
@@ -196,41 +102,43 @@ def _expect_motion(tokens: _Tokens) -> None:
     if nxt != "MOTION":
         if nxt is None:
             raise tokens.error("the MOTION part is missing: the file ends after the hierarchy")
-        raise tokens.error(f"expected 'MOTION' after the hierarchy but found '{nxt}'")
+        raise tokens.error(f"expected 'MOTION' after the hierarchy but found {quote(nxt)}")
 
 
-def _open_joint(tokens: _Tokens, joints: list[_Joint], seen: dict[str, int], parent: int) -> None:
+def _open_joint(
+    tokens: HierarchyWords, joints: list[_Joint], seen: dict[str, int], parent: int
+) -> None:
     """Read a joint's name and ``{`` and append it to ``joints``."""
     line = tokens.line
     name = tokens.next("a joint name")
     if name in ("{", "}"):
-        tokens.pos -= 1
-        raise tokens.error("a joint needs a name before '{'")
+        raise tokens.error_at_last("a joint needs a name before '{'")
     if name in seen:
         raise BVHError(
             tokens.path, line,
-            f"duplicate joint name '{name}' (first on line {joints[seen[name]].line}): "
+            f"duplicate joint name {quote(name)} (first on line {joints[seen[name]].line}): "
             "rename one of them",
         )
-    if len(joints) >= MAX_JOINTS:
+    if len(joints) >= bvh_limits.MAX_JOINTS:
         raise BVHError(
             tokens.path, line,
-            f"more than {MAX_JOINTS} joints: at most {MAX_JOINTS} are read; simplify the rig",
+            f"more than {bvh_limits.MAX_JOINTS} joints: at most {bvh_limits.MAX_JOINTS} are "
+            "read; simplify the rig",
         )
     seen[name] = len(joints)
     joints.append(_Joint(name, parent, line))
     tokens.expect("{")
 
 
-def _close_joint(tokens: _Tokens, joint: _Joint) -> None:
+def _close_joint(tokens: HierarchyWords, joint: _Joint) -> None:
     """Check a joint whose ``}`` was just read."""
     if joint.offset is None:
-        raise BVHError(tokens.path, joint.line, f"joint '{joint.name}' has no OFFSET")
+        raise BVHError(tokens.path, joint.line, f"joint {quote(joint.name)} has no OFFSET")
     if not joint.channels:
-        raise BVHError(tokens.path, joint.line, f"joint '{joint.name}' has no CHANNELS")
+        raise BVHError(tokens.path, joint.line, f"joint {quote(joint.name)} has no CHANNELS")
 
 
-def _parse_hierarchy(tokens: _Tokens) -> list[_Joint]:
+def _parse_hierarchy(tokens: HierarchyWords) -> list[_Joint]:
     if tokens.peek() is None:
         raise tokens.error("the file is empty: a BVH file starts with HIERARCHY")
     tokens.expect("HIERARCHY")
@@ -238,117 +146,170 @@ def _parse_hierarchy(tokens: _Tokens) -> list[_Joint]:
     seen: dict[str, int] = {}
     tok = tokens.next("the ROOT joint")
     if tok != "ROOT":
-        tokens.pos -= 1
-        raise tokens.error(f"expected 'ROOT' after HIERARCHY but found '{tok}': empty hierarchy")
+        raise tokens.error_at_last(
+            f"expected 'ROOT' after HIERARCHY but found {quote(tok)}: empty hierarchy"
+        )
     _open_joint(tokens, joints, seen, -1)
     # An explicit stack of open joints: nesting depth is bounded by MAX_JOINTS, not by
-    # Python's recursion limit.
+    # Python's recursion limit. A second OFFSET or CHANNELS and end sites beyond MAX_JOINTS
+    # are refused, so the hierarchy stays small however long the file.
     open_joints = [0]
+    end_sites = 0
     while open_joints:
         joint = joints[open_joints[-1]]
-        tok = tokens.next(f"the body of joint '{joint.name}'")
+        tok = tokens.next(f"the body of joint {quote(joint.name)}")
+        if (tok == "OFFSET" and joint.offset is not None) or (tok == "CHANNELS" and joint.channels):
+            raise tokens.error_at_last(f"joint {quote(joint.name)} has a second {tok}: remove one")
         if tok == "OFFSET":
-            joint.offset = np.array([tokens.number(f"OFFSET of '{joint.name}'") for _ in range(3)])
+            joint.offset = np.array([tokens.number(f"OFFSET of {quote(joint.name)}")
+                                     for _ in range(3)])
         elif tok == "CHANNELS":
             joint.channels = _parse_channels(tokens, joint.name)
         elif tok == "JOINT":
             _open_joint(tokens, joints, seen, open_joints[-1])
             open_joints.append(len(joints) - 1)
         elif tok == "End":
+            if end_sites >= bvh_limits.MAX_JOINTS:
+                raise tokens.error_at_last(
+                    f"more than {bvh_limits.MAX_JOINTS} end sites: at most "
+                    f"{bvh_limits.MAX_JOINTS} are read; simplify the rig"
+                )
             joint.end_sites.append(_parse_end_site(tokens, joint.name))
+            end_sites += 1
         elif tok == "}":
             _close_joint(tokens, joint)
             open_joints.pop()
         else:
-            tokens.pos -= 1
             raise _unexpected_in_joint(tokens, tok, joint.name)
     _expect_motion(tokens)
     return joints
 
 
-def _motion_header(path: str, lines: list[str], start: int) -> tuple[int, float, int]:
-    """Parse ``Frames:`` and ``Frame Time:``; return frames, frame time and data line index."""
-    idx = start + 1
-    values: dict[str, str] = {}
-    for key in ("Frames:", "Frame Time:"):
-        while idx < len(lines) and not lines[idx].strip():
-            idx += 1
-        if idx >= len(lines):
-            raise BVHError(path, idx, f"the MOTION part ends before '{key}': the file is truncated")
-        text = " ".join(lines[idx].split())  # "Frame\tTime:" is "Frame Time:"
-        if not text.startswith(key):
-            raise BVHError(path, idx + 1, f"expected '{key}' but found '{text[:40]}'")
-        values[key] = text[len(key):].strip()
-        idx += 1
+def _header_value(lines: BVHLines, key: str) -> tuple[str, int]:
+    """The text after ``key`` on the next non-blank line, and that line's number."""
+    while (line := lines.next()) is not None and not line.strip():
+        pass
+    if line is None:
+        raise BVHError(
+            lines.path, lines.number, f"the MOTION part ends before '{key}': the file is truncated"
+        )
+    text = " ".join(line.split())  # "Frame\tTime:" is "Frame Time:"
+    if not text.startswith(key):
+        raise BVHError(lines.path, lines.number, f"expected '{key}' but found {quote(text)}")
+    return text[len(key):].strip(), lines.number
+
+
+def _motion_header(lines: BVHLines) -> tuple[int, float, int]:
+    """Parse ``Frames:`` and ``Frame Time:``; return frames, frame time and the Frames line."""
+    found, frames_line = _header_value(lines, "Frames:")
     try:
-        frames = int(values["Frames:"])
+        frames = int(found)
         if frames < 0:
             raise ValueError
     except ValueError:
         raise BVHError(
-            path, start + 2, f"'Frames:' must be a whole number >= 0, found '{values['Frames:']}'"
+            lines.path, frames_line, f"'Frames:' must be a whole number >= 0, found {quote(found)}"
         ) from None
+    if frames > bvh_limits.MAX_FRAMES:
+        raise BVHError(
+            lines.path, frames_line,
+            f"'Frames:' is {quote(found)}: at most {bvh_limits.MAX_FRAMES:,} frames are read; "
+            "split the clip",
+        )
+    found, time_line = _header_value(lines, "Frame Time:")
     try:
-        frame_time = float(values["Frame Time:"])
+        frame_time = float(found)
         if not (np.isfinite(frame_time) and frame_time > 0):
             raise ValueError
     except ValueError:
-        found = values["Frame Time:"]
         raise BVHError(
-            path, start + 3, f"'Frame Time:' must be a positive number, found '{found}'"
+            lines.path, time_line, f"'Frame Time:' must be a positive number, found {quote(found)}"
         ) from None
     problem = frame_time_problem(frame_time)
     if problem:
-        raise BVHError(path, start + 3, problem)
-    return frames, frame_time, idx
+        raise BVHError(lines.path, time_line, problem)
+    return frames, frame_time, frames_line
 
 
 _ROW_RE = re.compile(r"at row (\d+)")
+_COLUMN_RE = re.compile(r"column (\d+)")
+#: Rows parsed at a time: the text held at once is at most this many rows and
+#: :data:`_BLOCK_CHARS` characters (plus one line).
+_BLOCK_ROWS = 4096
+_BLOCK_CHARS = 1 << 22
 
 
-def _parse_frames(path: str, lines: list[str], first: int, frames: int, width: int) -> np.ndarray:
-    data_lines = [ln for ln in lines[first:]]
-    # Keep track of the file line of each data row so errors can name it.
-    rows = [(n, ln) for n, ln in enumerate(data_lines, start=first + 1) if ln.strip()]
-    if len(rows) < frames:
-        raise BVHError(
-            path, len(lines),
-            f"the header says {frames} frames but only {len(rows)} follow: the file is truncated",
-        )
-    if len(rows) > frames:
-        raise BVHError(
-            path, rows[frames][0],
-            f"more frame lines than the {frames} that 'Frames:' declares: fix the count",
-        )
-    if frames == 0:
-        return np.zeros((0, width))
+def _parse_rows(path: str, rows: list[str], numbers: list[int], width: int) -> np.ndarray:
+    """``(R, width)`` values of frame rows ``rows`` (file lines ``numbers``)."""
     try:
-        values = np.loadtxt(
-            io.StringIO("\n".join(ln for _, ln in rows)), dtype=np.float64, ndmin=2, comments=None
-        )
+        values = np.loadtxt(rows, dtype=np.float64, ndmin=2, comments=None)
     except ValueError as exc:
         text = str(exc).split("\n")[0]
         match = _ROW_RE.search(text)
-        line = None
+        row = line = None
         if match:
             # NumPy numbers rows from 0 in conversion errors and from 1 in column-count errors.
             row = int(match.group(1)) - (0 if "could not convert" in text else 1)
-            line = rows[row][0] if 0 <= row < len(rows) else None
+            row = row if 0 <= row < len(rows) else None
+            line = None if row is None else numbers[row]
         problem = text.split(";")[0].rstrip(".")
         if "could not convert" in problem:
-            problem = f"non-numeric value in the frame data ({problem})"
+            # NumPy cuts the value it quotes at 100 characters: quote it from the row.
+            column = _COLUMN_RE.search(text)
+            words = rows[row].split() if row is not None else []
+            at = int(column.group(1)) - 1 if column else -1
+            value = quote(words[at]) if 0 <= at < len(words) else "a value"
+            problem = f"non-numeric value {value} in the frame data"
         raise BVHError(path, line, f"{problem}: every frame must hold {width} numbers") from None
     if values.shape[1] != width:
         raise BVHError(
-            path, rows[0][0],
+            path, numbers[0],
             f"each frame has {values.shape[1]} values but the hierarchy declares {width} "
             "channels: the channel count does not match",
         )
     bad = ~np.isfinite(values)
     if bad.any():
         row = int(np.argmax(bad.any(axis=1)))
-        raise BVHError(path, rows[row][0], "NaN or infinite value in the frame data")
+        raise BVHError(path, numbers[row], "NaN or infinite value in the frame data")
     return values
+
+
+def _parse_frames(lines: BVHLines, frames: int, width: int) -> np.ndarray:
+    """``(frames, width)`` channel values of the rows that follow the motion header.
+
+    Rows are read and parsed a block at a time, each row at most ``MAX_LINE_CHARS`` long and
+    refused as soon as it holds more than ``width`` values, so no more text than one block
+    is ever held.
+    """
+    blocks: list[np.ndarray] = []
+    rows: list[str] = []
+    numbers: list[int] = []
+    count = chars = 0
+    while (line := lines.next(width)) is not None:
+        if not line.strip():
+            continue
+        if count == frames:
+            raise BVHError(
+                lines.path, lines.number,
+                f"more frame lines than the {frames} that 'Frames:' declares: fix the count",
+            )
+        rows.append(line)
+        numbers.append(lines.number)
+        count += 1
+        chars += len(line)
+        if len(rows) == _BLOCK_ROWS or chars >= _BLOCK_CHARS:
+            blocks.append(_parse_rows(lines.path, rows, numbers, width))
+            rows, numbers, chars = [], [], 0
+    if count < frames:
+        raise BVHError(
+            lines.path, lines.number,
+            f"the header says {frames} frames but only {count} follow: the file is truncated",
+        )
+    if rows:
+        blocks.append(_parse_rows(lines.path, rows, numbers, width))
+    if not blocks:
+        return np.zeros((0, width))
+    return blocks[0] if len(blocks) == 1 else np.concatenate(blocks)
 
 
 def _resolve_unit(unit: str, skeleton_file: Skeleton) -> tuple[str, float]:
@@ -373,12 +334,18 @@ def _check_values(path: str, joints: list[_Joint], values: np.ndarray, scale: fl
         raise BVHError(path, None, problem)
 
 
+#: Frames turned into quaternions at a time by :func:`_channels_to_pose`.
+_POSE_FRAMES = 4096
+
+
 def _channels_to_pose(
     joints: list[_Joint], values: np.ndarray, offsets_m: np.ndarray, scale: float
 ) -> tuple[np.ndarray, np.ndarray]:
     """``(T, J, 4)`` rotations and ``(T, J, 3)`` positions from ``(T, C)`` channel values.
 
-    Joints are converted in one batch per rotation order, not one call per joint.
+    Joints are converted in one batch per rotation order, not one call per joint, and
+    :data:`_POSE_FRAMES` frames at a time: the conversion's temporaries stay a few MB
+    however long the clip.
     """
     frames, n_joints = len(values), len(joints)
     rotations = np.zeros((frames, n_joints, 4))
@@ -396,7 +363,10 @@ def _channels_to_pose(
                 positions[:, j, POSITION_CHANNELS.index(c)] = values[:, col + k] * scale
         col += len(joint.channels)
     for order, (js, cols) in by_order.items():
-        rotations[:, js] = euler_to_quaternion(np.deg2rad(values[:, cols]), order)
+        for start in range(0, frames, _POSE_FRAMES):
+            part = values[start:start + _POSE_FRAMES, cols]
+            rotations[start:start + _POSE_FRAMES, js] = euler_to_quaternion(np.deg2rad(part),
+                                                                            order)
     return rotations, positions
 
 
@@ -408,7 +378,8 @@ def read_bvh(path: str | os.PathLike, unit: str = "auto") -> Motion:
         unit: the file's length unit, one of ``"m"``, ``"cm"``, ``"mm"``, ``"in"``, ``"cmu"``
             (CMU's 1/0.45 inch), or ``"auto"``: the unit that makes the figure's standing
             height 1.2-2.2 m (:func:`emotive.io.bvh_limits.standing_height`,
-            :func:`emotive.io.bvh_limits.detect_unit`).
+            :func:`emotive.io.bvh_limits.detect_unit`); a figure that is still not 0.05-10 m
+            tall in it (``PLAUSIBLE_HEIGHT_M``) is refused. A unit given is honoured.
 
     Returns:
         The motion, with ``metadata`` holding ``name``, ``source``, ``file_unit`` and
@@ -417,23 +388,21 @@ def read_bvh(path: str | os.PathLike, unit: str = "auto") -> Motion:
     Raises:
         BVHError: the file is missing, not a regular BVH text file, malformed or beyond
             the limits of :mod:`emotive.io.bvh_limits`; the message names the line and the
-            problem.
+            problem, and quotes at most ``QUOTE_CHARS`` characters of the file.
     """
     path = Path(path)
-    text = _read_text(path)
-    lines = text.splitlines()
-    motion_idx = next((n for n, ln in enumerate(lines) if ln.strip() == "MOTION"), None)
-    header = lines if motion_idx is None else lines[:motion_idx + 1]
-    tokens = _Tokens(str(path), header)
-    joints = _parse_hierarchy(tokens)
-    if motion_idx is None:
-        raise BVHError(path, tokens.line, "'MOTION' must stand alone on its line")
-    frames, frame_time, data_start = _motion_header(str(path), lines, motion_idx)
-    width = sum(len(j.channels) for j in joints)
-    problem = size_problem(frames, width, len(joints))
-    if problem:
-        raise BVHError(path, motion_idx + 2, problem)
-    values = _parse_frames(str(path), lines, data_start, frames, width)
+    with open_bvh_text(path) as fh:
+        lines = BVHLines(str(path), fh)
+        tokens = HierarchyWords(lines)
+        joints = _parse_hierarchy(tokens)
+        if tokens.motion_line is None:
+            raise BVHError(path, tokens.line, "'MOTION' must stand alone on its line")
+        frames, frame_time, frames_line = _motion_header(lines)
+        width = sum(len(j.channels) for j in joints)
+        problem = size_problem(frames, width, len(joints))
+        if problem:
+            raise BVHError(path, frames_line, problem)
+        values = _parse_frames(lines, frames, width)
 
     names = tuple(j.name for j in joints)
     parents = np.array([j.parent for j in joints], dtype=np.int64)
@@ -444,6 +413,10 @@ def read_bvh(path: str | os.PathLike, unit: str = "auto") -> Motion:
     file_unit, height_file = _resolve_unit(unit, skeleton_file)
     scale = UNITS[file_unit]
     _check_values(str(path), joints, values, scale)
+    # A detected unit must make the figure plausible; a unit the caller gives is honoured.
+    problem = height_problem(height_file * scale, file_unit) if unit == "auto" else None
+    if problem:
+        raise BVHError(path, None, problem)
     skeleton = skeleton_file.scaled(scale)
 
     rotations, positions = _channels_to_pose(joints, values, skeleton.offsets, scale)
@@ -562,7 +535,8 @@ def write_bvh(motion: Motion, path: str | os.PathLike, unit: str | None = None) 
         unit: length unit of the file; by default the unit the motion was read from
             (``motion.metadata["file_unit"]``), else centimetres, unless :func:`read_bvh`
             would detect another unit in that file (a figure outside 1.2-2.2 m, read with an
-            explicit ``unit``): then the unit it detects back (metres or millimetres).
+            explicit ``unit``): then the unit it detects back (metres or millimetres). A
+            figure outside 0.05-10 m is read back only with that unit given.
 
     Returns:
         The written path.

@@ -1,10 +1,14 @@
 """Plausibility limits of the BVH reader and the length-unit detection.
 
 A BVH file is text anyone can write, so the reader refuses what no capture produces before
-it allocates or computes anything large: a file bigger than :data:`MAX_FILE_BYTES`, more
-than :data:`MAX_JOINTS` joints or :data:`MAX_FRAMES` frames, a frame rate outside
-:data:`MIN_FPS`-:data:`MAX_FPS`, a length beyond :data:`MAX_LENGTH_M` metres or an angle
-beyond :data:`MAX_ANGLE_DEG` degrees. ``docs/limits.md`` states every limit and why.
+it allocates or computes anything large: a file bigger than :data:`MAX_FILE_BYTES`, a line
+longer than :data:`MAX_LINE_CHARS` or a header word longer than :data:`MAX_TOKEN_CHARS`
+characters, more than :data:`MAX_JOINTS` joints (or end sites), :data:`MAX_FRAMES` frames or
+:data:`MAX_VALUES` channel values, a frame rate outside :data:`MIN_FPS`-:data:`MAX_FPS`, a
+length beyond :data:`MAX_LENGTH_M` metres, an angle beyond :data:`MAX_ANGLE_DEG` degrees and,
+when the unit is detected, a figure outside :data:`PLAUSIBLE_HEIGHT_M`. Messages quote at
+most :data:`QUOTE_CHARS` characters of the file (:func:`quote`). ``docs/limits.md`` states
+every limit and why.
 
 The length unit is detected from the figure's standing height (:func:`standing_height`: from
 its joint roles when they resolve, else the rest pose's extent, :func:`figure_height`), in
@@ -24,16 +28,29 @@ from emotive.core.skeleton import Skeleton
 #: 1.7 m actor stands about 30 units tall.
 UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254, "cmu": 0.0254 / 0.45}
 
-#: Largest file read (1 GiB): 60 million channel values written with 9 digits fit in it.
+#: Largest file read (1 GiB): the most channel values (:data:`MAX_VALUES`) written with 9
+#: significant digits take 230-330 MB, so this leaves room for any spacing.
 MAX_FILE_BYTES = 1 << 30
-#: Most joints in one hierarchy; full-body rigs with fingers and a face have a few hundred.
+#: Longest line, in characters (1 MiB): a frame row of the widest rig (:data:`MAX_JOINTS`
+#: joints x 6 channels) with 170 characters per value. Lines are read at most this long, so
+#: a file of one huge line is refused after 1 MiB, not read whole.
+MAX_LINE_CHARS = 1 << 20
+#: Longest word of the hierarchy and motion header (joint names, numbers, keywords), in
+#: characters: rig names run to a few dozen, a float64 written in full to 24.
+MAX_TOKEN_CHARS = 256
+#: Most characters of the file's own text quoted in a message.
+QUOTE_CHARS = 80
+#: Most joints in one hierarchy, and most end sites; full-body rigs with fingers and a face
+#: have a few hundred.
 MAX_JOINTS = 1024
 #: Most frames in one file: over 9 hours at 30 fps, over 16 minutes at 1,000 fps.
 MAX_FRAMES = 1_000_000
-#: Most channel values (frames x channels) in one file, checked before any array is made:
-#: 60 million float64 values are 480 MB; the quaternions and positions made from them
-#: stay within a few GB.
-MAX_VALUES = 60_000_000
+#: Most channel values (frames x channels) in one file, checked from the header before any
+#: array is made: an hour of a 60-joint rig (183 channels) at 30 fps. Reading a file at this
+#: limit peaks at about 540 MB above the interpreter (the values as float64, the quaternions
+#: and positions made from them); 59 million values took over 2 GB and ended in a
+#: ``MemoryError`` under a 3 GB address-space limit.
+MAX_VALUES = 20_000_000
 #: Lowest and highest frame rate (frames per second); ``Frame Time`` is their inverse.
 MIN_FPS = 1.0
 MAX_FPS = 1000.0
@@ -46,11 +63,29 @@ MAX_LENGTH_M = 1000.0
 MAX_ANGLE_DEG = 1e5
 #: Standing height of a humanoid, in metres; the detected unit puts the figure in it.
 HUMAN_HEIGHT_M = (1.2, 2.2)
+#: Heights, in metres, that a figure read with a detected unit may have: from a doll to a
+#: giant, well beyond what :func:`detect_unit` aims at; outside them the unit guess is
+#: wrong or the numbers are, and the file's unit must be given.
+PLAUSIBLE_HEIGHT_M = (0.05, 10.0)
 #: Share of the foot (ankle to toe) that stands for the ankle's height above the ground.
 ANKLE_HEIGHT_PER_FOOT = 0.5
 #: Least share of the legs-and-torso length that the skull adds above the head joint (the
 #: Bandai rig's head joint sits at the top of the neck and has no head-top joint).
 HEAD_TOP_PER_BODY = 0.15
+
+
+def quote(text: str) -> str:
+    """``text`` in quotes, cut to :data:`QUOTE_CHARS` characters and its length when longer.
+
+    Args:
+        text: text of the file that a message shows.
+
+    Returns:
+        ``'text'``, or ``'first characters...' (5,000 characters)``.
+    """
+    if len(text) <= QUOTE_CHARS:
+        return f"'{text}'"
+    return f"'{text[:QUOTE_CHARS - 3]}...' ({len(text):,} characters)"
 
 
 def frame_time_problem(frame_time: float) -> str | None:
@@ -85,13 +120,34 @@ def size_problem(frames: int, width: int, n_joints: int) -> str | None:
     if n_joints > MAX_JOINTS:
         return f"{n_joints} joints: at most {MAX_JOINTS} are read; split or simplify the rig"
     if frames > MAX_FRAMES:
-        return f"'Frames:' is {frames}: at most {MAX_FRAMES:,} frames are read; split the clip"
+        return f"{frames:,} frames: at most {MAX_FRAMES:,} frames are read; split the clip"
     if frames * width > MAX_VALUES:
         return (
-            f"{frames} frames x {width} channels = {frames * width:,} values: at most "
+            f"{frames:,} frames x {width} channels = {frames * width:,} values: at most "
             f"{MAX_VALUES:,} are read; split the clip"
         )
     return None
+
+
+def height_problem(height_m: float, unit: str) -> str | None:
+    """What is implausible about a figure's height in a detected unit, or ``None``.
+
+    Args:
+        height_m: standing height in metres (:func:`standing_height` times the unit's scale).
+        unit: the detected unit, a key of :data:`UNITS`.
+
+    Returns:
+        A message naming the height, the range and the way around (the file's unit), or
+        ``None`` when the height is in :data:`PLAUSIBLE_HEIGHT_M`.
+    """
+    low, high = PLAUSIBLE_HEIGHT_M
+    if low <= height_m <= high:
+        return None
+    return (
+        f"the figure stands {height_m:.3g} m tall with its unit detected as '{unit}': "
+        f"{low:g}-{high:g} m is plausible, so the unit or the offsets are wrong; check them or "
+        "give the file's unit (--unit on the command line, unit= to read_bvh: m, cm, mm, in, cmu)"
+    )
 
 
 def length_problem(values_m: np.ndarray, what: str) -> str | None:

@@ -7,9 +7,13 @@
   :class:`~emotive.errors.OutputError`), :func:`read_checkpoint` (typed one-line errors),
   :func:`slim_checkpoint` (the committed, optimizer-free copy).
 * Checkpoint validation, for the loaders' ``build``: :func:`require_keys` (keys and types),
-  :func:`check_values` (finite numbers of a plausible size; standard deviations above 0) and
-  :func:`load_weights` (keys and shapes against the network of the config, then the values).
-* Resume: :func:`training_paths`, :func:`check_resumable`, :func:`resumed_log`.
+  :func:`check_values` (finite real numbers of a plausible size; standard deviations above 0)
+  and :mod:`emotive.models.checkpoint_checks` (the weights tensor by tensor against the
+  network of the config, the config's fields, the optimizer state); :func:`read_checkpoint`
+  also checks a shipped file's fingerprint, the archive's CRC-32 and the checkpoint's
+  top-level entries.
+* Resume: :func:`training_paths`, :func:`check_resumable` (same config, settings and seed),
+  :func:`resumed_log`.
 * The epoch loop :func:`run_epochs`: a trainer gives its epoch (the updates over one pass of
   the batches), its checkpoint and its random state; the loop keeps the log (one row per
   epoch, ``log.csv`` rewritten atomically), writes ``best.pt`` when the epoch's score improves
@@ -27,7 +31,7 @@ import math
 import pickle
 import time
 import tomllib
-from collections.abc import Callable
+from collections.abc import Callable, Collection
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Any, Self, TypeVar
@@ -40,6 +44,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from emotive.data.emotion import ALL_LABELS
 from emotive.errors import ConfigError, EmotiveError, OutputError
 from emotive.io.atomic import atomic_output
+from emotive.models.checkpoint_checks import check_archive, check_entries, check_fingerprint
 
 T = TypeVar("T")
 
@@ -229,6 +234,8 @@ def require_keys(checkpoint: dict[str, Any], kinds: dict[str, type | tuple[type,
 
 def _check_array(array: np.ndarray, name: str, positive: bool) -> None:
     """:func:`check_values` of one numeric array."""
+    if array.dtype.kind == "c":
+        raise ValueError(f"{name} holds complex numbers, not real ones")
     if array.dtype.kind not in "biuf" or array.size == 0:
         return
     values = array.astype(np.float64, copy=False).reshape(-1)
@@ -244,11 +251,12 @@ def _check_array(array: np.ndarray, name: str, positive: bool) -> None:
 
 
 def check_values(value: Any, name: str, positive: bool = False) -> None:
-    """Check that every number in ``value`` is finite and at most :data:`MAX_MAGNITUDE` in size.
+    """Check that every number in ``value`` is real, finite and at most :data:`MAX_MAGNITUDE`.
 
     Args:
         value: a tensor, an array, a number, or a dict, list or tuple of them, as a checkpoint
-            holds weights, statistics and controls (strings, booleans and ``None`` pass).
+            holds weights, statistics and controls (strings, booleans and ``None`` pass; a
+            complex number or tensor and a bool tensor are refused).
         name: how the message names ``value`` (``"state['fc.weight']"``).
         positive: every number must also be above 0 (a standard deviation).
 
@@ -259,6 +267,8 @@ def check_values(value: Any, name: str, positive: bool = False) -> None:
         for key, item in value.items():
             check_values(item, f"{name}[{key!r}]", positive)
     elif isinstance(value, torch.Tensor):
+        if value.is_complex() or value.dtype == torch.bool:
+            raise ValueError(f"{name} is a {value.dtype} tensor, not real numbers")
         if value.is_floating_point() or positive:
             _check_array(value.detach().cpu().double().numpy(), name, positive)
     elif isinstance(value, (list, tuple)):
@@ -271,45 +281,10 @@ def check_values(value: Any, name: str, positive: bool = False) -> None:
         else:
             for k, item in enumerate(value):
                 check_values(item, f"{name}[{k}]", positive)
+    elif isinstance(value, (complex, np.complexfloating)):
+        raise ValueError(f"{name} holds the complex number {value}, not a real one")
     elif isinstance(value, (int, float, np.ndarray, np.number)) and not isinstance(value, bool):
         _check_array(np.asarray(value), name, positive)
-
-
-def load_weights(module: torch.nn.Module, state: Any, name: str = "state") -> None:
-    """Load ``state`` into ``module`` after checking it tensor by tensor.
-
-    ``state`` must be a dict of tensors with exactly the keys and shapes of
-    ``module.state_dict()`` (the network its config builds), every value passing
-    :func:`check_values`, those of a key ending in ``std`` above 0.
-
-    Args:
-        module: the network built from the checkpoint's config.
-        state: the checkpoint's weights.
-        name: how the message names ``state``.
-
-    Raises:
-        ValueError: the first problem, named, in one line (not torch's multi-line report).
-    """
-    if not isinstance(state, dict):
-        raise ValueError(f"{name} is a {type(state).__name__}, not a dict of tensors")
-    expected = module.state_dict()
-    missing = [k for k in expected if k not in state]
-    if missing:
-        raise ValueError(f"{name} lacks {missing[0]!r} ({len(missing)} of the network's "
-                         f"{len(expected)} tensors missing): the weights do not match the config")
-    unexpected = [k for k in state if k not in expected]
-    if unexpected:
-        raise ValueError(f"{name} holds {unexpected[0]!r}, which the network of the config "
-                         "lacks: the weights do not match the config")
-    for key, want in expected.items():
-        got = state[key]
-        if not isinstance(got, torch.Tensor):
-            raise ValueError(f"{name}[{key!r}] is a {type(got).__name__}, not a tensor")
-        if got.shape != want.shape:
-            raise ValueError(f"{name}[{key!r}] has shape {tuple(got.shape)} but the config "
-                             f"needs {tuple(want.shape)}")
-        check_values(got, f"{name}[{key!r}]", positive=key.endswith("std"))
-    module.load_state_dict(state)
 
 
 def _read_failure(exc: BaseException) -> str:
@@ -322,32 +297,45 @@ def _read_failure(exc: BaseException) -> str:
 
 
 def read_checkpoint(path: str | Path, what: str, build: Callable[[dict[str, Any]], T],
-                    fix: str) -> tuple[T, dict[str, Any]]:
+                    fix: str, entries: Collection[str] | None = None
+                    ) -> tuple[T, dict[str, Any]]:
     """A checkpoint dict and what ``build`` makes of it, every failure a :class:`ConfigError`.
 
-    The message is one line: torch's multi-line reports are replaced by our words, and an
-    exception of ``build`` gives its first line.
+    A shipped file (under ``emotive/assets``) must first match the sha256 of its model card
+    (:func:`~emotive.models.checkpoint_checks.check_fingerprint`), and every file's zip
+    records their CRC-32 (:func:`~emotive.models.checkpoint_checks.check_archive`). The
+    message is one line:
+    torch's multi-line reports are replaced by our words, and an exception of ``build`` gives
+    its first line.
 
     Args:
         path: the checkpoint file.
         what: the kind of checkpoint expected, for the message (``"a gait checkpoint"``).
         build: makes the model of the dict, validating it (:func:`require_keys`,
-            :func:`load_weights`, :func:`check_values`); any exception it raises means "not
-            ``what``", its first line the reason.
+            :func:`~emotive.models.checkpoint_checks.build_weights`, :func:`check_values`);
+            any exception it raises means "not ``what``", its first line the reason.
         fix: how the user gets a good checkpoint, for the message.
+        entries: the top-level keys a checkpoint of this kind may hold; any other, and
+            oversized tensors beside the weights, are refused
+            (:func:`~emotive.models.checkpoint_checks.check_entries`). ``None``: not checked.
 
     Returns:
         ``(build(checkpoint), checkpoint)``.
 
     Raises:
-        ConfigError: ``path`` is a folder, is missing, cannot be read (truncated, not a torch
-            file), or is not ``what``.
+        ConfigError: ``path`` is a folder, is missing, is a damaged shipped file, cannot be
+            read (truncated, not a torch file), or is not ``what``.
     """
     path = Path(path)
     if path.is_dir():
         raise ConfigError(f"{path}: is a folder; give the checkpoint file in it")
     if not path.is_file():
         raise ConfigError(f"{path}: checkpoint not found; {fix}")
+    check_fingerprint(path)
+    try:
+        check_archive(path)
+    except ValueError as exc:
+        raise ConfigError(f"{path}: not {what} ({exc}); {fix}") from None
     try:
         ckpt = torch.load(path, map_location="cpu", weights_only=True)
     except Exception as exc:  # torch raises many types on a file it cannot read
@@ -355,6 +343,8 @@ def read_checkpoint(path: str | Path, what: str, build: Callable[[dict[str, Any]
     try:
         if not isinstance(ckpt, dict):
             raise ValueError(f"holds a {type(ckpt).__name__}, not a dict")
+        if entries is not None:
+            check_entries(ckpt, entries)
         built = build(ckpt)
     except Exception as exc:  # any failure to build is the same problem for the user
         raise ConfigError(f"{path}: not {what} ({one_line(exc)}); {fix}") from None
@@ -390,28 +380,47 @@ def training_paths(out_dir: Path, resume: bool) -> Path:
 
 
 def check_resumable(path: Path, checkpoint: dict[str, Any], config: dict[str, Any],
-                    train: dict[str, Any]) -> None:
-    """Check that a run of ``config`` and ``train`` may continue ``checkpoint``.
+                    train: dict[str, Any], seed: int) -> None:
+    """Check that a run of ``config``, ``train`` and ``seed`` may continue ``checkpoint``.
 
-    The same ``"config"``, and the same ``"train"`` but for ``epochs``.
+    The same ``"config"``, the same ``"train"`` but for ``epochs``, and the same ``"seed"``.
+    Another seed is refused rather than ignored: the resumed run restores the checkpoint's
+    random state, so the new seed would have no effect, and the result would not be that of
+    either seed run without a stop. A config's own ``seed`` field (the FCRBM's is the run's
+    seed) is compared with the seeds, so that its message names both.
 
     Args:
         path: the checkpoint's file, for the message.
         checkpoint: the saved dict (its ``"config"`` and ``"train"`` as the trainer compares
-            them, e.g. with new settings filled with their defaults).
+            them, e.g. with new settings filled with their defaults; its ``"seed"``, when it
+            has one).
         config: the run's ``config.to_dict()``.
         train: the run's ``settings.to_dict()``.
+        seed: the run's ``--seed``.
 
     Raises:
-        ConfigError: the model config or the training settings differ.
+        ConfigError: the seed, the model config or the training settings differ.
     """
-    if checkpoint["config"] != config:
+    def unseeded(values: dict[str, Any]) -> dict[str, Any]:
+        return {k: v for k, v in values.items() if k != "seed"}
+
+    if unseeded(checkpoint["config"]) != unseeded(config):
         raise ConfigError(f"{path}: made with another [model] config; cannot resume (resume "
                           "with the config it was made with, or give a new --out)")
     saved = {k: v for k, v in checkpoint["train"].items() if k != "epochs"}
     if saved != {k: v for k, v in train.items() if k != "epochs"}:
         raise ConfigError(f"{path}: made with other [train] settings; cannot resume (only "
                           "epochs may change; or give a new --out)")
+    saved_seed = checkpoint.get("seed")
+    if saved_seed is None:
+        saved_seed = checkpoint["config"].get("seed")
+    if saved_seed is not None and saved_seed != seed:
+        raise ConfigError(f"{path}: made with --seed {saved_seed}, resumed with --seed {seed}; "
+                          f"cannot resume (resume with --seed {saved_seed}, or give a new --out "
+                          f"to start over with --seed {seed})")
+    if checkpoint["config"] != config:
+        raise ConfigError(f"{path}: made with another [model] seed; cannot resume (resume "
+                          "with the config it was made with, or give a new --out)")
 
 
 @dataclass(frozen=True)

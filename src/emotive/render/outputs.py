@@ -4,11 +4,11 @@ Files of any generated motion (:class:`~emotive.models.api.Generated`): BVH or g
 ``.gltf``: a skinned mannequin on the model's rig, :mod:`emotive.io.gltf`), NPZ, and a
 stick-figure preview captioned with the current emotion.
 
-Every file is written at the motion's own frame rate and atomically
-(:func:`emotive.io.atomic.atomic_output`), so an error never leaves a half-written file, and
-the files of one command go through :func:`write_all`: when one of them fails (a full disk
-while encoding the preview, say), the new files already written by the same command are
-removed too, so a failed command leaves no output it made.
+Every file is written at the motion's own frame rate, and the files of one call are all or
+none (:func:`emotive.io.atomic.output_transaction`): each is written under a temporary name
+and all are renamed into place only when the last is done, so when one of them fails (a full
+disk while encoding the preview, say) every file that existed before is left as it was and no
+new or temporary file is left.
 
 NPZ keys: ``positions`` ``(T, J + E, 3)`` world positions of joints then end sites (metres, Y
 up), ``names`` ``(J + E,)`` joint names then ``<parent>_end`` for end sites, ``parents``
@@ -21,15 +21,14 @@ Legend: ``T`` frames, ``J`` joints, ``E`` end sites, ``C`` labels, ``P`` path po
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from emotive.io.atomic import atomic_output
+from emotive.io.atomic import atomic_output, output_transaction
 from emotive.io.motion_files import MOTION_SUFFIXES, write_motion
-from emotive.io.outputs import PREVIEW_SUFFIXES, check_output
+from emotive.io.outputs import PREVIEW_SUFFIXES, check_distinct, check_output
 from emotive.render.preview import render_preview
 
 if TYPE_CHECKING:
@@ -75,35 +74,6 @@ def write_npz(generated: Generated, out: Path) -> Path:
     return out
 
 
-def write_all(writers: Sequence[tuple[Path, Callable[[], object]]]) -> list[Path]:
-    """Run each ``(path, write)`` in turn; if one fails, remove the new files of the others.
-
-    A file that existed before is replaced by the new, complete version as soon as its writer
-    is done, and kept; only files this call created are removed after a later failure.
-
-    Args:
-        writers: the output paths and the calls that write them (each atomically).
-
-    Returns:
-        The paths written, in order.
-
-    Raises:
-        OutputError: a file could not be written (the first writer's error, as it is).
-    """
-    existed = [Path(path).exists() for path, _ in writers]
-    done: list[Path] = []
-    try:
-        for path, write in writers:
-            write()
-            done.append(Path(path))
-    except BaseException:
-        for path, old in zip(done, existed, strict=False):
-            if not old:
-                path.unlink(missing_ok=True)
-        raise
-    return done
-
-
 def write_generated(generated: Generated, out: Path, npz: Path | None = None,
                     preview: Path | None = None, progress: bool = False) -> list[Path]:
     """Write a generated motion to ``out``, and optionally an NPZ and a preview.
@@ -122,27 +92,29 @@ def write_generated(generated: Generated, out: Path, npz: Path | None = None,
         The files written.
 
     Raises:
-        OutputError: an output of the wrong kind, a folder's name or in a missing or
-            unwritable folder (checked before any file is written), or a file that could not
-            be written whole (then none of the new files is left).
+        OutputError: an output of the wrong kind, a folder's name, in a missing or unwritable
+            folder or named twice (checked before any file is written), or a file that could
+            not be written whole (then no file is changed).
     """
     check_output(out, OUT_SUFFIXES, "--out")
     if npz is not None:
         check_output(npz, (".npz",), "--npz")
     if preview is not None:
         check_output(preview, PREVIEW_SUFFIXES, "--preview")
-    if out.suffix.lower() in MOTION_SUFFIXES:
-        writers = [(out, lambda: write_motion(generated.motion, out))]
-    else:
-        writers = [(out, lambda: write_npz(generated, out))]
-    if npz is not None:
-        writers.append((npz, lambda: write_npz(generated, npz)))
-    if preview is not None:
-        path = generated.path
-        writers.append((preview, lambda: render_preview(
-            generated.motion, preview, path_xz=path.points if path is not None else None,
-            captions=captions(np.asarray(generated.emotion), generated.labels),
-            title=f"{out.name}: {path.name}" if path is not None else out.name,
-            progress=progress,
-        )))
-    return write_all(writers)
+    check_distinct([("--out", out), ("--npz", npz), ("--preview", preview)])
+    with output_transaction() as outputs:
+        if out.suffix.lower() in MOTION_SUFFIXES:
+            write_motion(generated.motion, out)
+        else:
+            write_npz(generated, out)
+        if npz is not None:
+            write_npz(generated, npz)
+        if preview is not None:
+            path = generated.path
+            render_preview(
+                generated.motion, preview, path_xz=path.points if path is not None else None,
+                captions=captions(np.asarray(generated.emotion), generated.labels),
+                title=f"{out.name}: {path.name}" if path is not None else out.name,
+                progress=progress,
+            )
+    return outputs.written

@@ -31,6 +31,7 @@ from scipy.ndimage import uniform_filter1d
 from emotive.core.motion import Motion
 from emotive.errors import EmotiveError
 from emotive.io.atomic import atomic_output
+from emotive.io.outputs import missing_folder
 from emotive.render.video import VideoEncoder
 
 #: Output formats by file suffix.
@@ -176,8 +177,9 @@ def render_preview(
     if out.is_dir():
         raise PreviewError(f"preview {out}: that is a folder; name a file in it, e.g. "
                            f"{out / 'preview.gif'}")
-    if not out.parent.is_dir():
-        raise PreviewError(f"preview {out}: the folder {out.parent} does not exist; create it")
+    problem = missing_folder(out)
+    if problem is not None:
+        raise PreviewError(f"preview {out}: {problem}")
     if motion.num_frames == 0:
         raise PreviewError(f"preview {out}: the motion has no frames")
     if captions is not None and len(captions) != motion.num_frames:

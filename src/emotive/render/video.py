@@ -4,13 +4,16 @@ The ffmpeg binary is the one the ``imageio-ffmpeg`` wheel ships. Unlike
 ``imageio_ffmpeg.write_frames``, :class:`VideoEncoder` waits for ffmpeg to finish however long
 the GIF palette takes, checks its exit status, and checks that the file it wrote is whole (a GIF
 ends with its trailer byte), so a full disk or a killed encoder is an
-:class:`~emotive.errors.OutputError` and never a truncated video reported as written.
+:class:`~emotive.errors.OutputError` and never a truncated video reported as written. An
+encoder stopped by a signal is named by it, in words (:func:`killed_by`): the file-size limit
+(``SIGXFSZ``), or a kill.
 """
 
 from __future__ import annotations
 
 import errno
 import os
+import signal
 import subprocess
 import tempfile
 from fractions import Fraction
@@ -30,6 +33,15 @@ _FFMPEG_ERRNO = {
     "Operation not permitted": errno.EPERM,
     "Is a directory": errno.EISDIR,
     "Input/output error": errno.EIO,
+}
+#: Signal name -> what to do when it stopped ffmpeg (:func:`killed_by`).
+_SIGNAL_HINTS = {
+    "SIGXFSZ": "the video grew beyond the largest file this process may write (ulimit -f); "
+               "raise the limit (ulimit -f unlimited) or ask for a shorter or smaller video",
+    "SIGKILL": "something killed it, often the system running out of memory; free memory or "
+               "ask for a smaller video",
+    "SIGTERM": "it was asked to stop; run the command again",
+    "SIGINT": "it was interrupted; run the command again",
 }
 #: MP4 frames are padded to a multiple of this many pixels (what most players expect).
 MP4_BLOCK = 16
@@ -147,6 +159,30 @@ class VideoEncoder:
             if any(words in line for line in lines):
                 return output_error(self.name, OSError(code, words))
         status = self._process.returncode
+        if status is not None and status < 0:
+            return OutputError(f"cannot write {self.name}: the video encoder (ffmpeg) "
+                               f"{killed_by(-status)}")
         why = lines[-1] if lines else f"exit status {status}"
         return OutputError(f"cannot write {self.name}: the video encoder (ffmpeg) failed: {why}; "
                            "check the folder and the free space, or choose another folder")
+
+
+def killed_by(number: int) -> str:
+    """Why a process ended by signal ``number``, and the fix, in words.
+
+    E.g. ``"was stopped by the file-size limit (SIGXFSZ): ..."`` for 25 on Linux, the signal a
+    process gets when it writes past ``ulimit -f`` (its exit status reads ``-25``).
+
+    Args:
+        number: the signal (minus a negative :attr:`subprocess.Popen.returncode`).
+    """
+    try:
+        name = signal.Signals(number).name
+    except ValueError:
+        return (f"was stopped by signal {number}; run the command again, or check the ffmpeg "
+                "of imageio-ffmpeg")
+    hint = _SIGNAL_HINTS.get(name, "run the command again, or check the ffmpeg of "
+                             "imageio-ffmpeg")
+    if name == "SIGXFSZ":
+        return f"was stopped by the file-size limit ({name}): {hint}"
+    return f"was stopped by signal {name} ({signal.strsignal(number)}); {hint}"

@@ -8,11 +8,13 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+from scipy.ndimage import gaussian_filter1d, maximum_filter1d
 
 from emotive.core.motion import Motion
 from emotive.core.roles import JointRoles, resolve_roles
 from emotive.features.contacts import FOOT_ROLES, ground_heights
 from emotive.ik import resolve_chains, solve_chains
+from emotive.ik.api import fade_out
 from emotive.ik.foot_lock import leg_rig, move_ankles
 from emotive.transforms.np_rotations import quaternion_apply, quaternion_invert
 
@@ -25,6 +27,8 @@ LEGS = ("left_leg", "right_leg")
 
 #: A foot point this close to its floor (metres) counts as on the ground for :func:`foot_skate`.
 SKATE_HEIGHT = 0.02
+#: Frames over which a foot's lift to the source's clearance is spread (see plant_feet).
+LIFT_SPREAD = 3
 
 
 def lowest_ankle_height(points: np.ndarray, roles: JointRoles) -> float:
@@ -103,18 +107,11 @@ def _planted_targets(world: np.ndarray, source: np.ndarray, contact: np.ndarray,
     about their mean over the run; heights stay the target's. The correction fades out over
     ``blend`` frames either side of the run.
     """
-    n = len(world)
     delta = np.zeros_like(world)
     for a, b in _runs(contact):
         wanted = world[a:b].mean(0) + scale * (source[a:b] - source[a:b].mean(0))
         delta[a:b, :, [0, 2]] = (wanted - world[a:b])[..., [0, 2]]
-        for i in range(1, blend + 1):
-            w = 1.0 - i / (blend + 1)
-            if a - i >= 0 and not contact[a - i]:
-                delta[a - i] = w * delta[a]
-            if b - 1 + i < n and not contact[b - 1 + i]:
-                delta[b - 1 + i] = w * delta[b - 1]
-    return world + delta
+    return world + fade_out(delta, contact, blend)
 
 
 def _yaw(heel: np.ndarray, toe: np.ndarray) -> np.ndarray:
@@ -177,6 +174,45 @@ def plant_feet(motion: Motion, source_points: np.ndarray, source_roles: JointRol
     rotations = motion.rotations.copy()
     rotations[moving], _ = move_ankles(legs, rotations[moving], points[moving],
                                        shift[moving], yaw[moving])
+    source_feet = source_points[:, source_roles.indices(FOOT_ROLES)]
+    clearance = scale * ground_heights(source_feet).reshape(-1, 2, 2)
+    return _keep_clearance(motion.replace(rotations=rotations), legs, roles, clearance)
+
+
+def _keep_clearance(motion: Motion, legs, roles: JointRoles, clearance: np.ndarray) -> Motion:
+    """Each foot raised where its heel or toe is nearer the floor than the source's, scaled.
+
+    A target foot longer or pitched unlike the source's brings its toe (or heel) down to
+    the floor in frames where the source's is in the air: the toe scuffs the floor as it
+    swings through, or touches down early, and slides along it. Each foot is lifted, keeping
+    its orientation, by the most that its heel or toe is below the source's same point's
+    height above its floor times the legs' scale; the leg follows by the two-bone solve.
+    Where the source's heel is on the ground (within :data:`SKATE_HEIGHT`) the heel's plant
+    is kept and a low toe is left as it is (the toe's share fades in over the next
+    :data:`SKATE_HEIGHT`). The lift is spread over :data:`LIFT_SPREAD` frames (a running
+    maximum, then a Gaussian of a third of that width), so it adds no kink to the ankle's
+    path.
+
+    Args:
+        motion: the clip after the source's contacts were planted.
+        legs: its legs (:func:`emotive.ik.foot_lock.leg_rig`).
+        roles: its resolved roles.
+        clearance: ``(T, 2, 2)`` metres, the source's heights above its floor times the
+            scale: left then right foot, heel then toe (the order of :data:`FOOT_ROLES`).
+    """
+    points = motion.positions_with_end_sites()
+    feet = ground_heights(points[:, roles.indices(FOOT_ROLES)]).reshape(-1, 2, 2)
+    below = np.maximum(clearance - feet, 0.0)
+    below[..., 1] *= np.clip(clearance[..., 0] / SKATE_HEIGHT - 1.0, 0.0, 1.0)
+    lift = maximum_filter1d(below.max(axis=-1), LIFT_SPREAD, axis=0)
+    shift = np.zeros((motion.num_frames, 2, 3))
+    shift[..., 1] = gaussian_filter1d(lift, LIFT_SPREAD / 3, axis=0, mode="nearest")
+    moving = shift[..., 1].max(axis=1) > MOVED
+    if not moving.any():
+        return motion
+    rotations = motion.rotations.copy()
+    rotations[moving], _ = move_ankles(legs, rotations[moving], points[moving], shift[moving],
+                                       np.zeros((int(moving.sum()), 2)))
     return motion.replace(rotations=rotations)
 
 

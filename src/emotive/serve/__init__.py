@@ -8,7 +8,9 @@ size, nesting depth, rate), :mod:`~emotive.serve.messages` (control messages int
 :mod:`~emotive.serve.engines` (one adapter over the gait and FCRBM streaming generators),
 :mod:`~emotive.serve.recording` (recorded frames into motions),
 :mod:`~emotive.serve.simulation` (the thread that owns the engine and its clock),
-:mod:`~emotive.serve.hub` (per-client outboxes), :mod:`~emotive.serve.session` (one websocket
+:mod:`~emotive.serve.hub` (per-client outboxes), :mod:`~emotive.serve.preparation` (control
+messages prepared off the event loop and the simulation thread),
+:mod:`~emotive.serve.session` (one websocket
 connection), :mod:`~emotive.serve.app` (the ASGI app), :mod:`~emotive.serve.server` (uvicorn)
 and :mod:`~emotive.serve.testing` (a live server for tests).
 

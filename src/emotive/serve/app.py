@@ -2,7 +2,8 @@
 
 :func:`create_app` loads the engine first (so a missing model or backend fails before
 anything binds), then builds a FastAPI app whose lifespan starts the simulation thread
-(:class:`~emotive.serve.simulation.Simulation`) and stops it. Routes are those of
+(:class:`~emotive.serve.simulation.Simulation`) and the preparer of control messages
+(:class:`~emotive.serve.preparation.Preparer`) and stops them. Routes are those of
 ``docs/serve.md``; with a token every ``/api`` route and the websocket check it with
 :func:`hmac.compare_digest` (``Authorization: Bearer T`` or ``?token=T``); the page at ``/``
 and its files under ``/static`` are public, as they hold no scene data. Browsers let any site
@@ -15,6 +16,7 @@ from __future__ import annotations
 
 import asyncio
 import hmac
+import sys
 import tempfile
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
@@ -34,7 +36,9 @@ from emotive.io.gltf import encode_gltf, gltf_document
 from emotive.serve.engines import Engine, load_engine
 from emotive.serve.errors import MessageError
 from emotive.serve.hub import Hub, LoopSink
+from emotive.serve.limits import TokenBucket
 from emotive.serve.messages import Command
+from emotive.serve.preparation import Preparer
 from emotive.serve.recording import FORMATS, write_recording
 from emotive.serve.session import Session
 from emotive.serve.settings import ServeSettings, is_loopback
@@ -48,6 +52,11 @@ UNAUTHORIZED_CLOSE = 4401
 FORBIDDEN_CLOSE = 4403
 #: Seconds an HTTP request waits for the simulation thread.
 REPLY_TIMEOUT = 10.0
+#: The interpreter's thread switch interval while the server runs, seconds (Python's
+#: default is 0.005). The engine releases the interpreter lock inside each tensor operation
+#: and takes it again after; while the event loop or the preparer runs Python, each retake
+#: waits up to this long, so a short interval keeps the tick's many retakes short.
+SWITCH_INTERVAL = 0.0005
 
 
 def _error(status: int, message: str) -> JSONResponse:
@@ -108,8 +117,10 @@ class _State:
     def __init__(self, settings: ServeSettings, engine: Engine) -> None:
         self.settings = settings
         self.engine = engine
-        self.hub = Hub(settings)
+        self.hub = Hub(settings, 1.0 / engine.fps)
         self.sim: Simulation | None = None
+        self.preparer: Preparer | None = None
+        self.reads = TokenBucket(settings.server_rate, int(settings.server_rate))
         self.mannequin: bytes | None = None
 
     def scene(self) -> Simulation:
@@ -144,11 +155,17 @@ def create_app(settings: ServeSettings | None = None) -> FastAPI:
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         state.sim = Simulation(engine, settings, LoopSink(state.hub, asyncio.get_running_loop()))
+        state.preparer = Preparer(state.sim, settings)
+        switch = sys.getswitchinterval()
+        sys.setswitchinterval(SWITCH_INTERVAL)
         state.sim.start()
+        state.preparer.start()
         try:
             yield
         finally:
-            sim, state.sim = state.sim, None
+            sys.setswitchinterval(switch)
+            sim, preparer, state.sim, state.preparer = state.sim, state.preparer, None, None
+            await preparer.stop()
             await asyncio.to_thread(sim.stop)
 
     app = FastAPI(title="emotive serve", version=emotive.__version__, lifespan=lifespan,
@@ -167,10 +184,11 @@ def create_app(settings: ServeSettings | None = None) -> FastAPI:
         if not token_ok(settings.token, websocket.headers, websocket.query_params):
             await websocket.close(UNAUTHORIZED_CLOSE, "missing or wrong token")
             return
-        if state.sim is None:
+        if state.sim is None or state.preparer is None:
             await websocket.close(1013, "the scene is not running")
             return
-        await Session(websocket, state.sim, state.hub, settings).run()
+        await Session(websocket, state.sim, state.hub, state.preparer, settings,
+                      state.reads).run()
 
     return app
 

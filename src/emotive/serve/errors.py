@@ -2,7 +2,12 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 from emotive.errors import EmotiveError
+
+#: A message's ``ref`` when it had none (or it could not be read).
+NO_REF: Any = type("NoRef", (), {"__repr__": lambda self: "NO_REF"})()
 
 
 class ServeError(EmotiveError):
@@ -10,4 +15,14 @@ class ServeError(EmotiveError):
 
 
 class MessageError(EmotiveError):
-    """A control message that cannot be applied; its text is the ``error`` reply's message."""
+    """A control message that cannot be applied; its text is the ``error`` reply's message.
+
+    Args:
+        message: what is wrong and how to fix it.
+        ref: the message's ``ref`` when it could be read despite the problem (e.g. a message
+            holding ``NaN``), else :data:`NO_REF`.
+    """
+
+    def __init__(self, message: str, ref: Any = NO_REF) -> None:
+        super().__init__(message)
+        self.ref = ref

@@ -4,9 +4,15 @@ Each connected client has an :class:`Outbox` holding at most ``buffered_frames``
 newest; an older one is dropped and counted, per client and in total) and its pending
 replies. The simulation thread never touches an outbox: :class:`LoopSink` hands each encoded
 frame to the event loop with ``call_soon_threadsafe``, where :meth:`Hub.publish` appends the
-same bytes object to every outbox and returns. A client whose frames overflowed without a
-break for ``stall_seconds`` (it stopped reading), or that lets more than ``max_replies``
-replies pile up, is marked stalled and its session closes it.
+same bytes object to every outbox and returns.
+
+A client is blamed only for its own backlog: it is marked stalled (and its session closes it
+with 1008) when its socket has accepted nothing (the session's sender waits inside one send)
+for ``stall_seconds`` counted only while frames reached the outbox on time, each within
+:data:`ON_TIME_PERIODS` frame periods of the last. Time in which the server itself fell
+behind (a slow tick, a busy event loop) never counts against a client. Replies are not
+dropped: a client holding ``max_replies`` unread replies has no more of its messages read
+(:meth:`Outbox.room`) until it reads some.
 """
 
 from __future__ import annotations
@@ -19,6 +25,10 @@ from typing import Any
 
 from emotive.serve.settings import ServeSettings
 
+#: A frame that reaches an outbox within this many frame periods of the last counts as on
+#: time; a longer gap is the server's own delay and never counts against a client.
+ON_TIME_PERIODS = 4.0
+
 
 class Outbox:
     """What waits to be sent to one client: its replies first, then the newest frames.
@@ -26,50 +36,71 @@ class Outbox:
     Args:
         client: the connection number.
         frames: frames kept at most.
-        max_replies: replies kept at most before the client counts as stalled.
-        stall_seconds: seconds of continuous frame overflow before it counts as stalled.
+        max_replies: replies kept before the client's messages stop being read.
+        stall_seconds: seconds of its own backlog (see the module docstring) before it
+            counts as stalled.
+        period: the scene's frame period, seconds.
         clock: the time source, seconds.
     """
 
     def __init__(self, client: int, frames: int, max_replies: int, stall_seconds: float,
-                 clock: Callable[[], float] = time.monotonic) -> None:
+                 period: float = 1.0 / 30.0, clock: Callable[[], float] = time.monotonic
+                 ) -> None:
         self.client = client
         self.frames: deque[bytes] = deque()
         self.replies: deque[dict[str, Any]] = deque()
         self.max_frames = int(frames)
         self.max_replies = int(max_replies)
         self.stall_seconds = float(stall_seconds)
+        self.on_time_gap = ON_TIME_PERIODS * float(period)
         self.dropped = 0
         self.stalled = asyncio.Event()
         self._ready = asyncio.Event()
+        self._drained = asyncio.Event()
         self._clock = clock
-        self._overflow_since: float | None = None
+        self._sending = False
+        self._blocked = 0.0
+        self._last_frame: float | None = None
 
     def put_frame(self, data: bytes) -> int:
         """Queue a frame, dropping the oldest beyond the bound; returns the frames dropped."""
+        now = self._clock()
+        if self._sending and self._last_frame is not None:
+            gap = now - self._last_frame
+            if gap <= self.on_time_gap:
+                self._blocked += gap
+                if self._blocked > self.stall_seconds:
+                    self.stalled.set()
+        self._last_frame = now
         dropped = 0
         if len(self.frames) >= self.max_frames:
             self.frames.popleft()
             dropped = 1
             self.dropped += 1
-            now = self._clock()
-            if self._overflow_since is None:
-                self._overflow_since = now
-            elif now - self._overflow_since > self.stall_seconds:
-                self.stalled.set()
-        else:
-            self._overflow_since = None
         self.frames.append(data)
         self._ready.set()
         return dropped
 
     def put_reply(self, message: dict[str, Any]) -> None:
-        """Queue a reply (JSON-ready); too many unread ones mark the client stalled."""
-        if len(self.replies) >= self.max_replies:
-            self.stalled.set()
-            return
+        """Queue a reply (JSON-ready); none is ever dropped (see :meth:`room`)."""
         self.replies.append(message)
         self._ready.set()
+
+    def has_room(self) -> bool:
+        """Whether fewer than ``max_replies`` replies wait."""
+        return len(self.replies) < self.max_replies
+
+    async def room(self) -> None:
+        """Wait until fewer than ``max_replies`` replies wait (the client reads them)."""
+        while not self.has_room():
+            self._drained.clear()
+            await self._drained.wait()
+
+    def sending(self, active: bool) -> None:
+        """Mark the start (``True``) or the end of a send; an ended send clears the backlog."""
+        self._sending = active
+        if not active:
+            self._blocked = 0.0
 
     async def next(self) -> dict[str, Any] | bytes:
         """The next thing to send: a reply if any is waiting, else the oldest kept frame."""
@@ -77,7 +108,9 @@ class Outbox:
             self._ready.clear()
             await self._ready.wait()
         if self.replies:
-            return self.replies.popleft()
+            reply = self.replies.popleft()
+            self._drained.set()
+            return reply
         return self.frames.popleft()
 
 
@@ -86,10 +119,12 @@ class Hub:
 
     Args:
         settings: ``buffered_frames``, ``max_replies`` and ``stall_seconds``.
+        period: the scene's frame period, seconds.
     """
 
-    def __init__(self, settings: ServeSettings) -> None:
+    def __init__(self, settings: ServeSettings, period: float = 1.0 / 30.0) -> None:
         self.settings = settings
+        self.period = float(period)
         self.outboxes: dict[int, Outbox] = {}
         self.dropped_frames = 0
         self._next = 0
@@ -97,7 +132,8 @@ class Hub:
     def open(self) -> Outbox:
         """A new client's outbox."""
         s = self.settings
-        box = Outbox(self._next, s.buffered_frames, s.max_replies, s.stall_seconds)
+        box = Outbox(self._next, s.buffered_frames, s.max_replies, s.stall_seconds,
+                     self.period)
         self._next += 1
         self.outboxes[box.client] = box
         return box

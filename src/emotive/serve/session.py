@@ -1,13 +1,19 @@
 """One websocket connection: control messages in, replies and frames out.
 
-Two tasks per connection: the receiver checks each text message (rate, size, depth, JSON,
-fields: :mod:`~emotive.serve.limits`, :mod:`~emotive.serve.messages`), answers ``ping`` at
-once and queues everything else for the simulation thread, whose reply is put in the
-client's :class:`~emotive.serve.hub.Outbox` when it comes; the sender drains the outbox
-(replies first, then the newest frames). The receiver never waits for a reply, so a burst of
-``add_agent`` messages lands in one tick. Any exception while handling one message becomes
-that message's ``error`` reply; the connection ends when the client leaves, or when its
-outbox stalls (it stopped reading), with close code 1008.
+Two tasks per connection. The receiver checks each text message's rate and size: a message
+over the rate is answered with an error, as many a second as the rate allows in bursts of a
+quarter of ``burst``, and past that the receiver waits before it reads on; all the sessions
+together read at most ``server_rate`` messages a second. A small message (at most
+:data:`SMALL_MESSAGE` bytes) it parses at once, answering ``ping`` there; every other message
+goes to the client's lane of the :class:`~emotive.serve.preparation.Preparer`, which prepares
+it in its worker thread and hands the command to the simulation thread, whose reply is put
+in the client's :class:`~emotive.serve.hub.Outbox` when it comes. The sender drains the
+outbox (replies first, then the newest frames). The receiver never waits for a reply, but it
+reads no more of the client's messages while the client's lane is full or its unread replies
+reach ``max_replies``: a flood then waits in the client's own socket. Any exception while
+handling one message becomes that message's ``error`` reply, with the message's ``ref``
+whenever it could be read; the connection ends when the client leaves, or when its own
+backlog stalls it (:mod:`~emotive.serve.hub`), with close code 1008.
 """
 
 from __future__ import annotations
@@ -15,33 +21,22 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import json
-import time
-from concurrent.futures import Future
-from typing import Any
 
 from starlette.websockets import WebSocket, WebSocketDisconnect
 
-from emotive.serve.errors import MessageError
+from emotive.serve.errors import NO_REF, MessageError
 from emotive.serve.hub import Hub, Outbox
-from emotive.serve.limits import TokenBucket, parse_message
-from emotive.serve.messages import Command, to_command
+from emotive.serve.limits import TokenBucket, check_size, head_ref, parse_message, ref_of
+from emotive.serve.messages import Command
+from emotive.serve.preparation import Preparer, error_reply, pong, with_ref
 from emotive.serve.settings import ServeSettings
 from emotive.serve.simulation import Simulation, error_text
 
 #: Close code of a client dropped for not reading (policy violation).
 STALLED_CLOSE = 1008
-_NO_REF = object()
-
-
-def _with_ref(reply: dict[str, Any], ref: Any) -> dict[str, Any]:
-    if ref is not _NO_REF:
-        reply["ref"] = ref
-    return reply
-
-
-def error_reply(message: str, ref: Any = _NO_REF) -> dict[str, Any]:
-    """``{"type": "error", "message": ..., "ref": ...}`` (``ref`` only when the message had it)."""
-    return _with_ref({"type": "error", "message": message}, ref)
+#: Messages of at most this many bytes are parsed on the event loop (microseconds each);
+#: the ``ref`` of a refused message is read only up to this size.
+SMALL_MESSAGE = 4096
 
 
 class Session:
@@ -51,17 +46,24 @@ class Session:
         ws: the accepted websocket.
         sim: the scene.
         hub: the clients.
+        preparer: the lanes and the worker.
         settings: the limits.
+        reads: the server's messages read per second, shared by every session
+            (``server_rate``; ``None``: a bucket of this session's own).
     """
 
-    def __init__(self, ws: WebSocket, sim: Simulation, hub: Hub, settings: ServeSettings
-                 ) -> None:
+    def __init__(self, ws: WebSocket, sim: Simulation, hub: Hub, preparer: Preparer,
+                 settings: ServeSettings, reads: TokenBucket | None = None) -> None:
         self.ws = ws
         self.sim = sim
         self.hub = hub
+        self.preparer = preparer
         self.settings = settings
         self.bucket = TokenBucket(settings.rate, settings.burst)
+        self.refusals = TokenBucket(settings.rate, max(1, settings.burst // 4))
+        self.reads = reads or TokenBucket(settings.server_rate, int(settings.server_rate))
         self.box: Outbox = hub.open()
+        self.lane = preparer.open(self.box)
 
     async def run(self) -> None:
         """Serve the connection until the client leaves or stalls."""
@@ -74,6 +76,7 @@ class Session:
                 task.cancel()
             await asyncio.gather(*tasks, return_exceptions=True)
             self.hub.close(self.box)
+            self.preparer.close(self.lane)
             self.sim.submit(Command("client_left"), self.box.client)
         if self.box.stalled.is_set():
             with contextlib.suppress(Exception):
@@ -84,13 +87,24 @@ class Session:
         with contextlib.suppress(WebSocketDisconnect, RuntimeError, OSError):
             while True:
                 item = await self.box.next()
-                if isinstance(item, bytes):
-                    await self.ws.send_bytes(item)
-                else:
-                    await self.ws.send_text(json.dumps(item))
+                self.box.sending(True)
+                try:
+                    if isinstance(item, bytes):
+                        await self.ws.send_bytes(item)
+                    else:
+                        await self.ws.send_text(json.dumps(item))
+                finally:
+                    self.box.sending(False)
 
     async def _receive(self) -> None:
         while True:
+            await self.box.room()
+            # Messages over the rate are answered, as many again as the rate; past that
+            # the client's messages wait in its socket.
+            if self.refusals.delay() > 0.0:
+                await asyncio.sleep(self.bucket.delay())
+            while not self.reads.take():
+                await asyncio.sleep(self.reads.delay())
             message = await self.ws.receive()
             if message["type"] == "websocket.disconnect":
                 return
@@ -100,41 +114,40 @@ class Session:
                     "binary messages are frames, sent by the server only: send control "
                     "messages as JSON text"))
                 continue
-            self.handle(text)
+            await self.handle(text)
+            # uvicorn hands over every message of one read at once: let the other clients
+            # (and this one's sender) run between two of them.
+            await asyncio.sleep(0)
 
-    def handle(self, text: str) -> None:
-        """Answer one text message (at once, or when the simulation has applied it)."""
+    def _small_ref(self, text: str) -> object:
+        return ref_of(text) if len(text) <= SMALL_MESSAGE else head_ref(text)
+
+    async def handle(self, text: str) -> None:
+        """Answer one text message at once, or queue it for preparation."""
+        s = self.settings
         if not self.bucket.take():
-            s = self.settings
+            self.refusals.take()
             self.box.put_reply(error_reply(
                 f"too many messages: the limit is {s.rate:g} per second (bursts of {s.burst}); "
-                "this one was not applied"))
+                "this one was not applied", self._small_ref(text)))
             return
-        ref: Any = _NO_REF
+        ref = NO_REF
         try:
-            message = parse_message(text, self.settings.max_message_bytes,
-                                    self.settings.max_depth)
-            ref = message.get("ref", _NO_REF)
-            if message["type"] == "ping":
-                unknown = set(message) - {"type", "ref", "t"}
-                if unknown:
-                    raise MessageError(f"ping has no field {', '.join(sorted(unknown))}; its "
-                                       "fields: t")
-                self.box.put_reply(_with_ref({"type": "pong", "t": message.get("t"),
-                                              "server_time": time.time()}, ref))
+            size = check_size(text, s.max_message_bytes)
+            if size > SMALL_MESSAGE:
+                await self.preparer.put(self.lane, text, size)
                 return
-            future = self.sim.submit(to_command(message, self.sim.engine.labels,
-                                               self.sim.engine.points_over),
-                                     self.box.client)
-        except Exception as exc:  # every failure becomes this message's error reply
-            self.box.put_reply(error_reply(error_text(exc), ref))
+            message = parse_message(text, s.max_message_bytes, s.max_depth, s.max_values)
+            ref = message.get("ref", NO_REF)
+            if message["type"] == "ping":
+                self.box.put_reply(with_ref(pong(message), ref))
+                return
+            if message["type"] == "add_agent":
+                self.preparer.check_quota(self.lane)
+        except MessageError as exc:
+            if exc.ref is not NO_REF:
+                ref = exc.ref
+            self.box.put_reply(error_reply(error_text(exc),
+                                           head_ref(text) if ref is NO_REF else ref))
             return
-        asyncio.wrap_future(future).add_done_callback(
-            lambda done, ref=ref: self._answer(done, ref))
-
-    def _answer(self, done: asyncio.Future | Future, ref: Any) -> None:
-        if done.cancelled():
-            return
-        exc = done.exception()
-        reply = error_reply(error_text(exc)) if exc is not None else dict(done.result())
-        self.box.put_reply(_with_ref(reply, ref))
+        await self.preparer.put(self.lane, message, size)

@@ -45,16 +45,27 @@ class ServeSettings:
         model: ``"gait"`` (the main network) or ``"fcrbm"``.
         backend: ``"torch"`` or ``"onnx"`` (the gait network's step on ONNX Runtime).
         seed: seed of the agents' starting phases.
-        max_agents: agents the scene may hold at once.
+        max_agents: agents the scene may hold at once (the server may hold fewer: as many as
+            its measured step time lets it step within half a frame).
+        max_agents_per_client: agents one connection may have in the scene at once.
         max_message_bytes: largest control message, bytes (UTF-8).
         max_depth: deepest nesting of ``[`` and ``{`` in a control message.
+        max_values: most values (commas + 1) in a control message.
         rate: control messages per second a client may send, sustained.
         burst: control messages a client may send at once (the token bucket's size).
+        server_rate: control messages per second the server reads from all its clients
+            together (a client over it waits its turn; bursts of one second).
+        work_per_second: seconds of preparation (parsing, checking, building paths and
+            schedules, thread time) a client's messages may cost per second, sustained.
+        work_burst: seconds of preparation a client may use at once.
+        queued_messages: a client's messages waiting for preparation at most; the server
+            reads no more of its messages until one is prepared.
+        queued_megabytes: those messages' size at most, MB.
         buffered_frames: newest frames kept for a client that reads slowly; older are dropped.
-        stall_seconds: a client whose frames overflowed for this long without a pause is
-            disconnected.
-        max_replies: replies waiting for a client that does not read them before it is
-            disconnected.
+        stall_seconds: a client whose socket accepted nothing for this long while frames
+            came on time is disconnected (close code 1008).
+        max_replies: replies waiting for a client at most; the server reads no more of its
+            messages until it has read some.
         recording_seconds: longest recording, seconds of scene time.
         recording_megabytes: most memory one recording may hold, MB.
         kept_recordings: finished recordings kept for download (the oldest go first).
@@ -67,10 +78,17 @@ class ServeSettings:
     backend: str = "torch"
     seed: int = 0
     max_agents: int = 500
+    max_agents_per_client: int = 200
     max_message_bytes: int = 1_000_000
     max_depth: int = 64
+    max_values: int = 25_000
     rate: float = 100.0
     burst: int = 200
+    server_rate: float = 500.0
+    work_per_second: float = 0.1
+    work_burst: float = 0.5
+    queued_messages: int = 32
+    queued_megabytes: float = 1.0
     buffered_frames: int = 2
     stall_seconds: float = 10.0
     max_replies: int = 1000
@@ -107,8 +125,10 @@ class ServeSettings:
                              f"--model gait (got --model {self.model})")
         if not 0 <= self.port <= 65535:
             raise ServeError(f"--port {self.port} is not a TCP port; use 1-65535 (0: any free)")
-        for name in ("max_agents", "max_message_bytes", "max_depth", "rate", "burst",
-                     "buffered_frames", "stall_seconds", "max_replies", "recording_seconds",
+        for name in ("max_agents", "max_agents_per_client", "max_message_bytes", "max_depth",
+                     "max_values", "rate", "burst", "server_rate", "work_per_second", "work_burst",
+                     "queued_messages", "queued_megabytes", "buffered_frames",
+                     "stall_seconds", "max_replies", "recording_seconds",
                      "recording_megabytes", "kept_recordings"):
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):

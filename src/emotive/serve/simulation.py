@@ -1,8 +1,11 @@
 """The simulation thread: it alone owns the engine, and steps it on a fixed clock.
 
 Tick ``k`` is due at ``t0 + k / fps``. At each tick the thread applies the commands that
-arrived since the last one (consecutive ``add_agent`` commands in one batched call, so a
-hundred new agents cost one warm-up of the network), steps the engine, encodes the frame
+arrived since the last one, all prepared off this thread
+(:mod:`~emotive.serve.preparation`); new agents join in one batched call (so a hundred new
+agents cost one warm-up of the network) of at most :data:`JOIN_PER_TICK`, the others (and
+the later commands of their clients, which stay in order) at the next ticks. It then steps
+the engine, encodes the frame
 once (:func:`~emotive.serve.frames.encode_frame`), hands the bytes to the :class:`Sink`
 (which fans them out to the clients without waiting for any) and feeds the running
 recordings. A frame finished after the next tick was due counts as late; when the thread
@@ -12,6 +15,15 @@ scene time (frame number / fps) then runs behind wall time.
 Control messages reach the thread through a thread-safe queue (:meth:`Simulation.submit`)
 and are answered through :class:`concurrent.futures.Future` objects; the engine is never
 touched by two threads.
+
+Admission: an agent joins only if its client has fewer than ``max_agents_per_client`` in
+the scene and the scene fewer than :meth:`Simulation.capacity`: ``max_agents``, or fewer
+where the measured step time (processor time of this thread, which the engine steps in)
+says that more would not be stepped within :data:`STEP_BUDGET` of a frame. The step's
+median time at each of the last
+:data:`COUNTS_FITTED` agent counts is fitted by a line (a fixed cost plus a cost per agent)
+once those counts span :data:`MEASURED_AGENTS`; the limit is where the line crosses the
+budget, and the present count when the step already takes longer.
 
 Legend: ``B`` agents, ``J`` joints, ``C`` emotion labels.
 """
@@ -24,7 +36,7 @@ import math
 import queue
 import threading
 import time
-from collections import deque
+from collections import OrderedDict, deque
 from collections.abc import Callable
 from concurrent.futures import Future
 from dataclasses import dataclass
@@ -49,6 +61,16 @@ log = logging.getLogger("emotive.serve")
 STEP_WINDOW = 300
 #: Most points of a path reported in an agent's state.
 STATE_PATH_POINTS = 200
+#: Most agents joining at one tick (100 joining took 15 ms on a 2-core machine).
+JOIN_PER_TICK = 32
+#: Share of the frame period the engine's step may take with every agent the scene admits.
+STEP_BUDGET = 0.5
+#: Agent counts whose step times are fitted (the most recent ones).
+COUNTS_FITTED = 8
+#: The fitted counts must span at least this many agents.
+MEASURED_AGENTS = 16
+#: Recent steps kept per agent count.
+COST_WINDOW = 15
 
 
 class Sink(Protocol):
@@ -69,6 +91,7 @@ class _Agent:
     schedule: EmotionSchedule
     since: float
     pace: float
+    owner: int = -1
 
 
 class Simulation:
@@ -79,15 +102,19 @@ class Simulation:
         settings: the server's settings (``max_agents``, the recording limits).
         sink: receiver of frames and notices (:class:`Sink`).
         clock: the time source, seconds.
+        cpu_clock: this thread's processor time, seconds (the step times the admission
+            limit is derived from: other programs on the machine do not inflate them).
     """
 
     def __init__(self, engine: Engine, settings: ServeSettings, sink: Sink,
-                 clock: Callable[[], float] = time.perf_counter) -> None:
+                 clock: Callable[[], float] = time.perf_counter,
+                 cpu_clock: Callable[[], float] = time.thread_time) -> None:
         self.engine = engine
         self.settings = settings
         self.sink = sink
         self.fps = engine.fps
         self._clock = clock
+        self._cpu = cpu_clock
         self._queue: queue.SimpleQueue[tuple[Command, int, Future]] = queue.SimpleQueue()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
@@ -98,6 +125,10 @@ class Simulation:
                                  settings.recording_megabytes * 1e6, settings.kept_recordings)
         self._lock = threading.Lock()
         self._steps: deque[float] = deque(maxlen=STEP_WINDOW)
+        self._pending: deque[tuple[Command, int, Future]] = deque()
+        self._owned: dict[int, int] = {}
+        self._times: OrderedDict[int, deque[float]] = OrderedDict()
+        self._capacity = settings.max_agents
         self._done: deque[float] = deque()
         self.frames = 0
         self.late_frames = 0
@@ -117,10 +148,13 @@ class Simulation:
             self._thread.join(timeout)
         while True:
             try:
-                _, _, future = self._queue.get_nowait()
+                self._pending.append(self._queue.get_nowait())
             except queue.Empty:
                 break
-            future.set_exception(MessageError("the server is shutting down"))
+        for _, _, future in self._pending:
+            if not future.done():
+                future.set_exception(MessageError("the server is shutting down"))
+        self._pending.clear()
 
     def submit(self, command: Command, client: int = -1) -> Future:
         """Queue a command for the next tick; its future gets the reply message."""
@@ -163,7 +197,10 @@ class Simulation:
 
     def _tick(self) -> None:
         try:
+            agents = len(self.engine)
+            start = self._cpu()
             frame = self.engine.step()
+            self._measured(agents, self._cpu() - start)
         except Exception:
             # A model failure must not end the stream: log it and serve the last frame again.
             log.exception("the engine failed to step; the scene holds its last frame")
@@ -202,20 +239,62 @@ class Simulation:
 
     # ----------------------------------------------------------------------------- commands
 
+    def owned(self, client: int) -> int:
+        """Agents client ``client`` has in the scene (any thread: a read of one number)."""
+        return self._owned.get(client, 0)
+
+    def capacity(self) -> int:
+        """Agents the scene admits now: ``max_agents``, or fewer by the measured step time."""
+        return self._capacity
+
+    def _measured(self, agents: int, seconds: float) -> None:
+        """Take one step's time into the admission limit (see the module docstring)."""
+        if agents == 0:
+            return
+        times = self._times.setdefault(agents, deque(maxlen=COST_WINDOW))
+        times.append(seconds)
+        self._times.move_to_end(agents)
+        while len(self._times) > COUNTS_FITTED:
+            self._times.popitem(last=False)
+        counts = np.array(list(self._times), dtype=np.float64)
+        medians = np.array([np.median(t) for t in self._times.values()])
+        budget = STEP_BUDGET / self.fps
+        limit = self.settings.max_agents
+        if np.median(times) > budget:
+            limit = agents
+        elif len(counts) >= 2 and np.ptp(counts) >= MEASURED_AGENTS:
+            slope, fixed = np.polyfit(counts, medians, 1)
+            if slope > 0.0:
+                limit = min(limit, max(int((budget - fixed) / slope), agents))
+        self._capacity = limit
+
     def _apply_pending(self) -> None:
-        batch: list[tuple[Command, int, Future]] = []
         while True:
             try:
-                item = self._queue.get_nowait()
+                self._pending.append(self._queue.get_nowait())
             except queue.Empty:
                 break
-            if item[0].kind == "add_agent":
-                batch.append(item)
-                continue
-            self._add(batch)
-            batch = []
-            self._apply(*item)
+        batch: list[tuple[Command, int, Future]] = []
+        joined = 0
+        waiting: set[int] = set()
+        later: deque[tuple[Command, int, Future]] = deque()
+        for item in self._pending:
+            command, client, _ = item
+            if client in waiting:
+                later.append(item)
+            elif command.kind == "add_agent":
+                if joined < JOIN_PER_TICK:
+                    batch.append(item)
+                    joined += 1
+                else:
+                    waiting.add(client)
+                    later.append(item)
+            else:
+                self._add(batch)
+                batch = []
+                self._apply(*item)
         self._add(batch)
+        self._pending = later
 
     def _apply(self, command: Command, client: int, future: Future) -> None:
         try:
@@ -225,14 +304,36 @@ class Simulation:
         else:
             future.set_result(reply)
 
+    def _refusal(self, client: int, taken: dict[int, int], count: int) -> MessageError | None:
+        """Why one more agent of ``client`` may not join a scene of ``count``, or ``None``."""
+        s = self.settings
+        if client >= 0 and self.owned(client) + taken.get(client, 0) >= s.max_agents_per_client:
+            return MessageError(
+                f"you have {self.owned(client)} agents in the scene, the limit per client "
+                f"(--max-agents-per-client {s.max_agents_per_client}): remove some first")
+        if count < self._capacity:
+            return None
+        if self._capacity >= s.max_agents:
+            return MessageError(f"the scene holds {count} agents, the server's limit "
+                                f"(--max-agents {s.max_agents}): remove agents first")
+        return MessageError(
+            f"the scene holds {count} agents, the most this machine steps within "
+            f"{100 * STEP_BUDGET:.0f} % of a {1000 / self.fps:.1f} ms frame by its measured "
+            f"step time (limit now {self._capacity}, below --max-agents {s.max_agents}): "
+            "remove agents first, or try again when the machine is less busy")
+
     def _add(self, batch: list[tuple[Command, int, Future]]) -> None:
-        """Add a run of ``add_agent`` commands, batched, within ``max_agents``."""
-        room = self.settings.max_agents - len(self.engine)
-        for _, _, future in batch[max(room, 0):]:
-            future.set_exception(MessageError(
-                f"the scene holds {len(self.engine)} agents, the server's limit (--max-agents "
-                f"{self.settings.max_agents}): remove agents first"))
-        batch = batch[:max(room, 0)]
+        """Add a run of ``add_agent`` commands, batched, within the quotas and the capacity."""
+        taken: dict[int, int] = {}
+        admitted = []
+        for item in batch:
+            refusal = self._refusal(item[1], taken, len(self.engine) + len(admitted))
+            if refusal is not None:
+                item[2].set_exception(refusal)
+                continue
+            taken[item[1]] = taken.get(item[1], 0) + 1
+            admitted.append(item)
+        batch = admitted
         if not batch:
             return
         specs: list[AddAgent] = [c.value for c, _, _ in batch]
@@ -248,8 +349,9 @@ class Simulation:
                 self._add([item])
             return
         now = self.frames / self.fps
-        for agent, spec, (_, _, future) in zip(ids, specs, batch, strict=True):
-            self._agents[agent] = _Agent(spec.path, spec.schedule, now, spec.pace)
+        for agent, spec, (_, client, future) in zip(ids, specs, batch, strict=True):
+            self._agents[agent] = _Agent(spec.path, spec.schedule, now, spec.pace, client)
+            self._owned[client] = self._owned.get(client, 0) + 1
             future.set_result({"type": "agent", "id": agent})
 
     def _known(self, agent: int | None) -> int:
@@ -277,6 +379,7 @@ class Simulation:
         if kind == "remove_agent":
             self.engine.remove_agent(agent)
             del self._agents[agent]
+            self._owned[info.owner] = self._owned.get(info.owner, 1) - 1
         elif kind == "set_emotion":
             self.engine.set_emotion(agent, value)
             info.schedule, info.since = value, self.frames / self.fps
@@ -323,7 +426,8 @@ class Simulation:
             fps = len(self._done)
             frames, late = self.frames, self.late_frames
         p50, p99 = (np.percentile(steps, [50, 99]) if len(steps) else (0.0, 0.0))
-        return {"agents": len(self._agents), "fps": float(fps), "frames": frames,
+        return {"agents": len(self._agents), "capacity": self._capacity,
+                "fps": float(fps), "frames": frames,
                 "late_frames": late, "step_ms": {"p50": round(float(p50), 3),
                                                  "p99": round(float(p99), 3)}}
 

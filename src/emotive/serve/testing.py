@@ -33,8 +33,11 @@ def running_server(**settings: Any) -> Iterator[str]:
         **settings: any field of :class:`~emotive.serve.settings.ServeSettings` but ``host``
             and ``port`` (always ``127.0.0.1`` and a free port): ``token``, ``model``
             (``"gait"``, ``"fcrbm"``), ``backend`` (``"torch"``, ``"onnx"``), ``seed``,
-            ``max_agents`` (500), ``max_message_bytes`` (1,000,000), ``max_depth`` (64),
-            ``rate`` (100 messages/s), ``burst`` (200), ``buffered_frames`` (2),
+            ``max_agents`` (500), ``max_agents_per_client`` (200), ``max_message_bytes``
+            (1,000,000), ``max_depth`` (64), ``max_values`` (25,000), ``rate`` (100
+            messages/s), ``burst`` (200), ``server_rate`` (500 messages/s),
+            ``work_per_second`` (0.1 s), ``work_burst`` (0.5 s), ``queued_messages`` (32),
+            ``queued_megabytes`` (1), ``buffered_frames`` (2),
             ``stall_seconds`` (10), ``max_replies`` (1000), ``recording_seconds`` (600),
             ``recording_megabytes`` (256), ``kept_recordings`` (16).
 

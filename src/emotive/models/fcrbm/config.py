@@ -8,10 +8,22 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, fields
 from typing import Any
 
-__all__ = ["CONTEXT_FEATURES", "FCRBMConfig"]
+from emotive.models.checkpoint_checks import SEED_RANGE, WIDTH_RANGE, Range, check_fields
+
+__all__ = ["CONTEXT_FEATURES", "RANGES", "FCRBMConfig"]
 
 #: Gating features of the context (:attr:`FCRBMConfig.context_features`).
 CONTEXT_FEATURES = ("linear", "rbf")
+#: Plausible values of the numeric fields, checked with their types by
+#: :func:`~emotive.models.checkpoint_checks.check_fields` (a TOML file's or a checkpoint's).
+RANGES: dict[str, Range] = {
+    **dict.fromkeys(("visible", "hidden", "factors", "factors_past_visible",
+                     "factors_past_hidden"), WIDTH_RANGE),
+    "context": Range(1, 64), "order": Range(1, 1000), "cd_steps": Range(1, 1000),
+    "gibbs": Range(1, 10000), "learning_rate": Range(0, 10, above=True),
+    "weight_decay": Range(0, 10), "init_std": Range(0, 10, above=True),
+    "rbf_width": Range(0, 10, above=True), "seed": SEED_RANGE,
+}
 
 
 @dataclass(frozen=True)
@@ -63,6 +75,7 @@ class FCRBMConfig:
     rbf_width: float = 0.5
 
     def __post_init__(self) -> None:
+        check_fields(self)
         sizes = (
             "visible", "context", "order", "hidden", "factors",
             "factors_past_visible", "factors_past_hidden", "cd_steps", "gibbs",
@@ -87,6 +100,7 @@ class FCRBMConfig:
                              f"arousal), got {self.context}")
         if not self.weight_decay >= 0:
             raise ValueError(f"FCRBMConfig.weight_decay must be >= 0, got {self.weight_decay!r}")
+        check_fields(self, RANGES)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain JSON-ready dictionary of every field."""

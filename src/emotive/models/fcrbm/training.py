@@ -416,8 +416,9 @@ def train_fcrbm(
         _, _, ckpt = load_fcrbm_checkpoint(last_path)
         # Settings added since a checkpoint was written take their defaults.
         saved = {"config": FCRBMConfig.from_dict(ckpt["config"]).to_dict(),
-                 "train": FCRBMTrainSettings().to_dict() | ckpt["train"]}
-        check_resumable(last_path, saved, config.to_dict(), settings.to_dict())
+                 "train": FCRBMTrainSettings().to_dict() | ckpt["train"],
+                 "seed": ckpt.get("seed")}
+        check_resumable(last_path, saved, config.to_dict(), settings.to_dict(), seed)
         model.load_state_dict(ckpt["state"])
         model._velocity = dict(ckpt["velocity"])
         restore_rng_state(rng, ckpt["rng"], gen)

@@ -18,6 +18,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from emotive.data.emotion import DEFAULT_LABELS, check_labels
+from emotive.models.checkpoint_checks import (
+    FPS_RANGE,
+    LOSS_WEIGHT_RANGE,
+    WIDTH_RANGE,
+    Range,
+    check_fields,
+)
 from emotive.models.training import DictConfig
 
 #: Per-frame inputs of the network besides rotations and emotion, in column order.
@@ -37,6 +44,15 @@ _WEIGHTS = (
     "motion_weight", "pose_weight", "affective_weight", "root_weight", "foot_contact_weight",
     "versor_weight", "amplitude_weight",
 )
+#: Plausible values of the numeric fields, checked with their types by
+#: :func:`~emotive.models.checkpoint_checks.check_fields` (a TOML file's or a checkpoint's).
+RANGES: dict[str, Range] = {
+    "num_joints": Range(1, 1000), "fps": FPS_RANGE, "gru_layers": Range(1, 16),
+    "head_hidden": Range(0, WIDTH_RANGE.high),
+    **dict.fromkeys(("enc1_hidden", "enc1_out", "enc2_hidden", "enc2_out", "gru_hidden",
+                     "root_hidden", "versor_hidden"), WIDTH_RANGE),
+    **dict.fromkeys(_WEIGHTS, LOSS_WEIGHT_RANGE),
+}
 
 
 @dataclass(frozen=True)
@@ -103,6 +119,7 @@ class GaitConfig(DictConfig):
     use_root_loss: bool = True
 
     def __post_init__(self) -> None:
+        check_fields(self)
         object.__setattr__(self, "labels", check_labels(self.labels))
         for name in _POSITIVE_INTS:
             value = getattr(self, name)
@@ -125,6 +142,7 @@ class GaitConfig(DictConfig):
         for name in ("use_affective", "use_root_loss"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"GaitConfig.{name} must be true or false")
+        check_fields(self, RANGES)
 
     @property
     def num_labels(self) -> int:

@@ -16,12 +16,12 @@ from pathlib import Path
 from typing import Any
 
 from emotive.errors import ConfigError
+from emotive.models.checkpoint_checks import build_weights, check_optimizer
 from emotive.models.gait.config import GaitConfig
 from emotive.models.gait.controls import GaitControls
 from emotive.models.gait.network import GaitNetwork
 from emotive.models.training import (
     check_values,
-    load_weights,
     read_checkpoint,
     require_keys,
     slim_checkpoint,
@@ -33,6 +33,8 @@ DEFAULT_CHECKPOINT = "emotive-gait.pt"
 EXPORTED_KEYS: tuple[str, ...] = (
     "config", "state", "controls", "train", "epoch", "best_val", "history", "seed",
 )
+#: Keys a training checkpoint of :func:`~emotive.models.gait.training.train_gait` holds.
+TRAINING_KEYS: tuple[str, ...] = (*EXPORTED_KEYS, "optimizer", "rng")
 
 
 @dataclass(frozen=True, eq=False)
@@ -71,9 +73,11 @@ def load_gait_checkpoint(path: str | Path) -> tuple[GaitNetwork, dict[str, Any]]
     The network (in eval mode) of a checkpoint written by
     :func:`~emotive.models.gait.training.train_gait`, and the checkpoint.
 
-    The weights are checked tensor by tensor (:func:`~emotive.models.training.load_weights`):
-    the keys and shapes of the config's network, finite values of a plausible size, feature
-    standard deviations above 0.
+    The weights are checked tensor by tensor before the network is built
+    (:func:`~emotive.models.checkpoint_checks.build_weights`): the keys, dtypes and shapes of
+    the config's network, finite values within the trained range, feature standard deviations
+    above 0; a training checkpoint's optimizer state against the network's parameters; the
+    config field by field; a shipped file against its model card's fingerprint.
 
     Raises:
         ConfigError: the file is missing, a folder, unreadable, or not a usable gait
@@ -82,12 +86,15 @@ def load_gait_checkpoint(path: str | Path) -> tuple[GaitNetwork, dict[str, Any]]
 
     def build(ckpt: dict[str, Any]) -> GaitNetwork:
         require_keys(ckpt, {"config": dict, "state": dict})
-        network = GaitNetwork(GaitConfig.from_dict(ckpt["config"]))
-        load_weights(network, ckpt["state"])
+        config = GaitConfig.from_dict(ckpt["config"])
+        network = build_weights(lambda: GaitNetwork(config), ckpt["state"])
+        if "optimizer" in ckpt:
+            check_optimizer(ckpt["optimizer"], network)
         return network
 
     network, ckpt = read_checkpoint(path, "a gait checkpoint", build,
-                                    "give a last.pt or best.pt written by `emotive train gait`")
+                                    "give a last.pt or best.pt written by `emotive train gait`",
+                                    TRAINING_KEYS)
     network.eval()
     return network, ckpt
 

@@ -36,8 +36,9 @@ end of an epoch gives the same results as not stopping; after Ctrl-C inside an e
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -106,7 +107,8 @@ class GaitTrainSettings(DictConfig):
             window once, in random order, as the paper).
         init_from: a gait checkpoint whose weights start the training (fine-tuning); its
             model must have the same labels and sizes (loss weights may differ). ``""``:
-            random initialization.
+            random initialization. In a TOML file a relative path is read from the file's
+            folder (:func:`load_gait_settings`).
     """
 
     epochs: int = 500
@@ -157,13 +159,19 @@ def load_gait_settings(path: str | Path) -> tuple[GaitConfig, GaitTrainSettings]
     Read ``[model]`` (:class:`GaitConfig` fields) and ``[train]``
     (:class:`GaitTrainSettings` fields) from a TOML file
     (:func:`emotive.models.training.load_settings`: ``[model] labels`` defaults to every
-    style).
+    style). A relative ``init_from`` is taken from the file's folder, so a recipe and the
+    checkpoint it starts from can move together.
 
     Raises:
         ConfigError: the file is missing or not TOML, or has an unknown section, an unknown
             key or a bad value; the message names the file and the key.
     """
-    return load_settings(path, GaitConfig, GaitTrainSettings)
+    config, settings = load_settings(path, GaitConfig, GaitTrainSettings)
+    start = Path(settings.init_from)
+    if settings.init_from and not start.is_absolute():
+        settings = replace(settings,
+                           init_from=os.path.normpath(Path(path).resolve().parent / start))
+    return config, settings
 
 
 @dataclass
@@ -385,7 +393,7 @@ def train_gait(
     log = TrainingLog()
     if resume:
         _, ckpt = load_gait_checkpoint(last_path)
-        check_resumable(last_path, ckpt, config.to_dict(), settings.to_dict())
+        check_resumable(last_path, ckpt, config.to_dict(), settings.to_dict(), seed)
         network.load_state_dict(ckpt["state"])
         optimizer.load_state_dict(ckpt["optimizer"])
         restore_rng_state(rng, ckpt["rng"])

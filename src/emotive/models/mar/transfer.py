@@ -12,7 +12,11 @@ frames: the output style's own timing, so a sad walk takes longer than its neutr
 :func:`transfer_motion` runs a whole clip through the stream and finishes it offline: output
 resampled to the input frame rate at its output times, footplant likelihoods smoothed with a
 Gaussian, planted feet pinned by IK (:func:`emotive.ik.pin_feet`), and, for an input rig other
-than the database's, retargeting there and back (:mod:`~emotive.models.mar.retarget`).
+than the database's, retargeting there and back (:mod:`~emotive.models.mar.retarget`). On that
+path the pins are met by the analytic two-bone solve (:func:`emotive.ik.pin_feet_two_bone`):
+the output is retargeted by IK once more anyway, and the damped least squares pinning cost as
+much as the rest of the transfer (on a 195-frame walk it was the larger half of the time, and
+an unreachable pin could throw a leg above the hips, which the two-bone solve cannot).
 
 Legend: ``T`` frames, ``J`` joints, ``D`` pose dimensions, ``S`` styles, ``P`` points.
 """
@@ -30,7 +34,7 @@ from emotive.core.motion import Motion
 from emotive.core.ops import resample
 from emotive.data.emotion import Emotion, EmotionSchedule, coerce_blend
 from emotive.errors import EmotionError
-from emotive.ik import IKResult, pin_feet, resolve_chains
+from emotive.ik import pin_feet, pin_feet_two_bone
 from emotive.models.mar.config import TransferError
 from emotive.models.mar.database import MARDatabase
 from emotive.models.mar.regression import METHODS, predict, standardize, track_rows
@@ -277,25 +281,6 @@ def _retime(frames: list[TransferFrame], codec: RigCodec, fps: float) -> tuple[
     return rot, pos, at(contact), source
 
 
-def _unpin_failed(motion: Motion, pinned: IKResult) -> Motion:
-    """The pinned clip, with ``motion``'s own leg pose where a pin could not be met.
-
-    A pin held to the end of a long contact run can lie beyond the stretched leg; the solver
-    then ends far off target: on a CMU-style relayout of a real walk translated to angry, a
-    toe 1.26 m off, thrown above the hips for a frame (34 body heights per second once
-    retargeted back). Those frames (``off_target``) keep the unpinned leg. Only inputs from
-    other rigs take this path, so the outputs on the database's own rig stay as recorded.
-    """
-    failed = {name: f for name, f in pinned.off_target.items() if len(f)}
-    if not failed:
-        return pinned.motion
-    rot = pinned.motion.rotations.copy()
-    for name, frames in failed.items():
-        joints = resolve_chains(motion.skeleton, motion, names=(name,))[name].joints
-        rot[np.ix_(frames, joints)] = motion.rotations[np.ix_(frames, joints)]
-    return pinned.motion.replace(rotations=rot)
-
-
 def transfer_motion(
     motion: Motion,
     db: MARDatabase,
@@ -369,8 +354,7 @@ def transfer_motion(
     out = Motion(work.skeleton, rot, pos, db.config.fps, meta)
     pinned = False
     if pin and contacts.any():
-        result = pin_feet(out, contacts)
-        out = _unpin_failed(out, result) if foreign else result.motion
+        out = pin_feet_two_bone(out, contacts) if foreign else pin_feet(out, contacts).motion
         pinned = True
     if foreign:
         out = retarget(out, motion if motion.fps == db.config.fps

@@ -13,11 +13,25 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from emotive.data.emotion import ALL_LABELS, check_labels
+from emotive.models.checkpoint_checks import (
+    FPS_RANGE,
+    LOSS_WEIGHT_RANGE,
+    WIDTH_RANGE,
+    Range,
+    check_fields,
+)
 from emotive.models.training import DictConfig
 
 _POSITIVE_INTS = ("num_joints", "control_hidden", "gru_hidden", "gru_layers")
 _WEIGHTS = ("pose_weight", "versor_weight")
 _SWITCHES = ("use_movement", "residual")
+#: Plausible values of the numeric fields, checked with their types by
+#: :func:`~emotive.models.checkpoint_checks.check_fields` (a TOML file's or a checkpoint's).
+RANGES: dict[str, Range] = {
+    "num_joints": Range(1, 1000), "fps": FPS_RANGE, "control_hidden": WIDTH_RANGE,
+    "gru_hidden": WIDTH_RANGE, "gru_layers": Range(1, 16),
+    **dict.fromkeys(_WEIGHTS, LOSS_WEIGHT_RANGE),
+}
 
 
 @dataclass(frozen=True)
@@ -56,6 +70,7 @@ class QuaterNetConfig(DictConfig):
     versor_weight: float = 0.01
 
     def __post_init__(self) -> None:
+        check_fields(self)
         object.__setattr__(self, "labels", check_labels(self.labels))
         for name in _POSITIVE_INTS:
             value = getattr(self, name)
@@ -78,3 +93,4 @@ class QuaterNetConfig(DictConfig):
         for name in _SWITCHES:
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"QuaterNetConfig.{name} must be true or false")
+        check_fields(self, RANGES)

@@ -38,6 +38,7 @@ import numpy as np
 import torch
 
 from emotive.errors import ConfigError
+from emotive.models.checkpoint_checks import build_weights, check_optimizer
 from emotive.models.gait.config import GaitConfig
 from emotive.models.gait.controls import gait_controls
 from emotive.models.gait.data import GaitBatch, GaitData, load_gait_data
@@ -57,7 +58,6 @@ from emotive.models.training import (
     TrainingLog,
     check_resumable,
     load_settings,
-    load_weights,
     read_checkpoint,
     require_keys,
     restore_rng_state,
@@ -74,6 +74,11 @@ LOG_TERMS: tuple[str, ...] = ("pose", "versor", "total")
 CSV_COLUMNS: tuple[str, ...] = (
     "epoch", *(f"train_{t}" for t in LOG_TERMS), *(f"val_{t}" for t in LOG_TERMS),
     "lr", "teacher_forcing", "seconds",
+)
+#: Keys of a checkpoint of :func:`train_quaternet` (the committed one drops the last two).
+CHECKPOINT_KEYS: tuple[str, ...] = (
+    "model", "config", "train", "state", "epoch", "best_val", "history", "seed", "controls",
+    "optimizer", "rng",
 )
 
 
@@ -172,8 +177,9 @@ def evaluate_quaternet(network: QuaterNetwork, data: GaitData, rig: GaitRig, bat
 def load_quaternet_checkpoint(path: str | Path) -> tuple[QuaterNetwork, dict[str, Any]]:
     """The network of a checkpoint written by :func:`train_quaternet`, and the checkpoint.
 
-    The weights are checked tensor by tensor (:func:`~emotive.models.training.load_weights`)
-    and the animation controls as a gait checkpoint's
+    The weights (and a training checkpoint's optimizer state) are checked as a gait
+    checkpoint's (:func:`~emotive.models.gait.model.load_gait_checkpoint`) and the animation
+    controls as a gait checkpoint's
     (:func:`~emotive.models.gait.model.read_controls`).
 
     Raises:
@@ -183,12 +189,14 @@ def load_quaternet_checkpoint(path: str | Path) -> tuple[QuaterNetwork, dict[str
 
     def build(ckpt: dict[str, Any]) -> QuaterNetwork:
         require_keys(ckpt, {"config": dict, "state": dict})
-        network = QuaterNetwork(QuaterNetConfig.from_dict(ckpt["config"]))
-        load_weights(network, ckpt["state"])
+        config = QuaterNetConfig.from_dict(ckpt["config"])
+        network = build_weights(lambda: QuaterNetwork(config), ckpt["state"])
+        if "optimizer" in ckpt:
+            check_optimizer(ckpt["optimizer"], network)
         return network
 
     fix = "give a last.pt or best.pt written by `emotive train quaternet`"
-    network, ckpt = read_checkpoint(path, "a QuaterNet checkpoint", build, fix)
+    network, ckpt = read_checkpoint(path, "a QuaterNet checkpoint", build, fix, CHECKPOINT_KEYS)
     read_controls(Path(path), ckpt, network.config.num_joints, fix)
     network.eval()
     return network, ckpt
@@ -248,7 +256,7 @@ def train_quaternet(
     log = TrainingLog()
     if resume:
         _, ckpt = load_quaternet_checkpoint(last_path)
-        check_resumable(last_path, ckpt, config.to_dict(), settings.to_dict())
+        check_resumable(last_path, ckpt, config.to_dict(), settings.to_dict(), seed)
         network.load_state_dict(ckpt["state"])
         optimizer.load_state_dict(ckpt["optimizer"])
         restore_rng_state(rng, ckpt["rng"])
