@@ -86,12 +86,8 @@ def test_errors_echo_the_ref(url):
     assert reply["type"] == "error" and reply["ref"].startswith("r")
 
 
-def test_errors_to_messages_holding_nan_or_infinity_echo_the_ref(url):
-    texts = ['{"type": "add_agent", "pace": NaN, "ref": "nan"}',
-             '{"type": "set_target", "id": 0, "target": [Infinity, 0], "ref": {"k": 1}}',
-             '{"type": "add_agent", "path": [[0, 0], [1e999, 1]], "ref": 7, "pad": "'
-             + "x" * 5000 + '"}']
-
+def _replies(url: str, texts: list[str]) -> list[dict]:
+    """Send every text on one connection; the replies, once there is one for each."""
     async def run():
         async with WsClient(url) as client:
             for text in texts:
@@ -99,7 +95,15 @@ def test_errors_to_messages_holding_nan_or_infinity_echo_the_ref(url):
             await client.wait_for(lambda: len(client.replies) >= len(texts))
             return client.replies
 
-    replies = asyncio.run(run())
+    return asyncio.run(run())
+
+
+def test_errors_to_messages_holding_nan_or_infinity_echo_the_ref(url):
+    texts = ['{"type": "add_agent", "pace": NaN, "ref": "nan"}',
+             '{"type": "set_target", "id": 0, "target": [Infinity, 0], "ref": {"k": 1}}',
+             '{"type": "add_agent", "path": [[0, 0], [1e999, 1]], "ref": 7, "pad": "'
+             + "x" * 5000 + '"}']
+    replies = _replies(url, texts)
     assert all(r["type"] == "error" and "finite numbers" in r["message"] for r in replies)
     assert sorted(map(str, (r["ref"] for r in replies))) == ["7", "nan", "{'k': 1}"]
 
@@ -108,15 +112,7 @@ def test_refusals_of_messages_too_large_to_read_echo_a_ref_sent_first(url):
     texts = ['{"ref": "big", "type": "ping", "pad": "' + "x" * 1_500_000 + '"}',
              '{"ref": "many", "type": "add_agent", "path": [' + "[0, 0], " * 20_000 + "[1, 1]]}",
              '{"ref": "deep", "type": "ping", "pad": ' + "[" * 100 + "]" * 100 + "}"]
-
-    async def run():
-        async with WsClient(url) as client:
-            for text in texts:
-                await client.send(text)
-            await client.wait_for(lambda: len(client.replies) >= len(texts))
-            return client.replies
-
-    replies = asyncio.run(run())
+    replies = _replies(url, texts)
     assert all(r["type"] == "error" for r in replies), replies
     assert sorted(r.get("ref") for r in replies) == ["big", "deep", "many"], replies
 
