@@ -195,12 +195,18 @@ def _run_block(commands: list[str], user_files: Path, folder: Path
 
 @pytest.fixture(scope="module")
 def block_runs(user_files: Path, tmp_path_factory: pytest.TempPathFactory) -> dict:
-    """Every block's (script, result), two at a time (each command runs on one thread)."""
+    """Every block's (script, result), two at a time (each command runs on one thread).
+
+    The blocks with the most commands run as written start first, so that the two workers
+    finish together rather than one waiting on the longest block at the end.
+    """
     root = tmp_path_factory.mktemp("blocks")
     have_blender = shutil.which("blender") is not None
+    order = sorted(enumerate(BLOCKS), key=lambda item: -sum(
+        not any(e in c for e in EXPENSIVE) for c in item[1][1]))
     with ThreadPoolExecutor(max_workers=2) as pool:
         futures = {where: pool.submit(_run_block, commands, user_files, root / f"b{i}")
-                   for i, (where, commands) in enumerate(BLOCKS)
+                   for i, (where, commands) in order
                    if have_blender or not _needs_blender(commands)}
         return {where: future.result() for where, future in futures.items()}
 
