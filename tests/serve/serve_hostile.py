@@ -319,6 +319,20 @@ class Watcher(threading.Thread):
         return got, made
 
 
+#: Frames the watcher waits for before a measurement (half a second of the stream).
+SETTLE_FRAMES = 15
+
+
+def _frames_after(watcher: Watcher, count: int) -> None:
+    """Wait until the watcher has ``count`` more frames (a hang guard of START_TIMEOUT)."""
+    target = len(watcher.numbers) + count
+    deadline = time.monotonic() + START_TIMEOUT
+    while len(watcher.numbers) < target and watcher.error is None:
+        if time.monotonic() > deadline:
+            raise RuntimeError(f"the watcher got no {count} frames in {START_TIMEOUT} s")
+        time.sleep(0.01)
+
+
 def _stats(url: str) -> dict[str, Any]:
     return httpx.get(f"{url}/api/stats", timeout=60).json()
 
@@ -343,7 +357,7 @@ def campaign(seconds: float = 20.0, quiet: float = 3.0, server_args: tuple[str, 
         watcher.connected.wait(START_TIMEOUT)
         if watcher.error is not None:
             raise watcher.error
-        time.sleep(0.5)
+        _frames_after(watcher, SETTLE_FRAMES)
         s0, t0 = _stats(url), time.perf_counter()
         time.sleep(quiet)
         s1, t1 = _stats(url), time.perf_counter()
@@ -355,7 +369,7 @@ def campaign(seconds: float = 20.0, quiet: float = 3.0, server_args: tuple[str, 
         out, _ = floods.communicate(timeout=START_TIMEOUT + seconds + DRAIN_TIMEOUT + 60)
         end = time.perf_counter()
         s2 = _stats(url)
-        time.sleep(0.5)
+        _frames_after(watcher, SETTLE_FRAMES)
         rss_after = rss_mb(proc.pid)
         watcher.stop()
     counts = json.loads(out.strip().splitlines()[-1])
