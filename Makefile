@@ -17,7 +17,7 @@ $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install -q --upgrade pip
 	$(BIN)/python -m pip install -q torch==2.13.0
-	$(BIN)/python -m pip install -q -e '.[dev,bench,eval,docs,serve,onnx]'
+	$(BIN)/python -m pip install -q -e '.[dev,bench,eval,docs,serve,onnx,study,synth]'
 	touch $@
 
 install: $(STAMP)

@@ -25,6 +25,7 @@ from bench import (
     bench_onnx,
     bench_readme,
     bench_serve,
+    bench_study,
 )
 from bench.common import machine_info, pinned_threads
 from emotive.data import dataset_dir
@@ -66,6 +67,8 @@ def main() -> None:
         ("onnx", lambda: bench_onnx.run(agents=(1, 100) if args.quick else (1, 100, 1000),
                                         repeats=3 if args.quick else 5)),
         ("serve", lambda: bench_serve.run(seconds=5.0 if args.quick else 10.0)),
+        ("study", lambda: bench_study.run(stimuli=4 if args.quick else 8,
+                                          seconds=5.0 if args.quick else 10.0)),
         ("mar", lambda: bench_mar.run(frames=60 if args.quick else 200,
                                       baseline_frames=10 if args.quick else 20)),
         ("fcrbm", lambda: bench_fcrbm.run(repeats=1 if args.quick else 3)),

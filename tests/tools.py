@@ -37,3 +37,31 @@ def bvh_to_fbx(blender: str, bvh: Path, fbx: Path) -> None:
                           "--python-expr", BVH_TO_FBX, "--", str(bvh), str(fbx)],
                          capture_output=True, text=True, timeout=300, check=False)
     assert run.returncode == 0 and fbx.is_file(), run.stdout[-2000:] + run.stderr[-2000:]
+
+
+#: Flags that give headless Chromium a software WebGL 2 (SwiftShader through ANGLE).
+CHROMIUM_FLAGS = ("--use-angle=swiftshader", "--enable-unsafe-swiftshader",
+                  "--ignore-gpu-blocklist")
+
+
+def headless_chromium(timeout_s: float):
+    """Debian's Chromium, headless, driven by Playwright's bundled driver (a generator for a
+    module-scoped fixture: it yields the browser and closes it after).
+
+    Skips naming what to install when Playwright or Chromium is missing (a failure under
+    ``EMOTIVE_REQUIRE_TOOLS=1``).
+    """
+    import shutil
+
+    try:
+        from playwright.sync_api import sync_playwright
+    except ImportError:
+        require_tool(False, "Playwright is not installed (pip install playwright; its bundled "
+                     "driver is enough, no browser download)")
+    exe = shutil.which("chromium") or shutil.which("chromium-browser")
+    require_tool(exe is not None, "Chromium is not installed (apt-get install chromium)")
+    with sync_playwright() as pw:
+        chromium = pw.chromium.launch(executable_path=exe, args=list(CHROMIUM_FLAGS),
+                                      timeout=timeout_s * 1000)
+        yield chromium
+        chromium.close()

@@ -1,8 +1,8 @@
 """The ``emotive`` command line: one entry point, verb-first sub-commands.
 
 ``generate``, ``train``, ``transfer``, ``reconstruct``, ``retarget``, ``evaluate``, ``models``,
-``info``, ``features``, ``preview``, ``classify``, ``data``, ``serve`` and ``export``; each
-lives in :mod:`emotive.commands` and this module registers them. The old spellings
+``info``, ``features``, ``preview``, ``classify``, ``data``, ``serve``, ``export`` and
+``study``; each lives in :mod:`emotive.commands` and this module registers them. The old spellings
 ``fcrbm train|generate`` and ``resample`` work for one release, with one deprecation line.
 
 :func:`main` runs the app without click's own error handling, so that every invalid value,
@@ -34,6 +34,7 @@ from emotive.commands.render import preview
 from emotive.commands.resample import resample
 from emotive.commands.retarget import retarget
 from emotive.commands.serve import serve
+from emotive.commands.study import app as study_app
 from emotive.commands.train import app as train_app
 from emotive.commands.transfer import transfer
 from emotive.errors import EmotiveError
@@ -78,6 +79,7 @@ app.command("classify")(classify)
 app.add_typer(data_app, name="data")
 app.command("serve")(serve)
 app.add_typer(export_app, name="export")
+app.add_typer(study_app, name="study")
 app.command("resample", hidden=True)(resample)
 app.add_typer(fcrbm_app, name="fcrbm", hidden=True)
 

@@ -169,3 +169,8 @@ def test_importing_the_modules_loads_no_heavy_library() -> None:
         [sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=60
     )
     assert out.stdout.strip() == ""
+
+
+def test_anderson_darling_without_a_p_value_is_an_input_error():
+    with pytest.raises(StatsInputError, match="too degenerate"):
+        anderson_darling_ksamp([[1.0]] * 10 + [[5.0]] * 10)

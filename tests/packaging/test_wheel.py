@@ -90,7 +90,9 @@ def test_the_wheel_holds_every_file_of_the_package(wheel: Path):
     assert tree - names == set()
     for asset in ("emotive/assets/gait/emotive-gait.pt", "emotive/assets/gait/MODEL_CARD.md",
                   "emotive/serve/static/index.html",
-                  "emotive/serve/static/vendor/three/three.module.js"):
+                  "emotive/serve/static/vendor/three/three.module.js",
+                  "emotive/study/static/index.html", "emotive/study/migrations/env.py",
+                  "emotive/study/migrations/versions/0001_initial.py"):
         assert asset in names
 
 
@@ -135,6 +137,15 @@ def _lines(stream, out: queue.Queue) -> None:
     for line in stream:
         out.put(line)
     out.put(None)
+
+
+def test_a_study_is_made_and_its_database_migrated_from_the_wheel(venv: Path, tmp_path: Path):
+    _run(venv, tmp_path, "emotive", "study", "init", "walkers", "--count", "1", "--seconds",
+         "2")
+    done = _run(venv, tmp_path, "emotive", "study", "export", "walkers", "--out", "r.csv")
+    assert "0 responses" in done.stdout
+    assert (tmp_path / "r.csv").read_text().startswith("participant,condition,stimulus,")
+    assert (tmp_path / "walkers" / "study.db").is_file()
 
 
 def test_serve_answers_health_and_the_app(venv: Path, tmp_path: Path):

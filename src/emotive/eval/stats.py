@@ -205,7 +205,15 @@ def anderson_darling_ksamp(
         method = stats.PermutationMethod(n_resamples=n_resamples, rng=np.random.default_rng(seed))
     with warnings.catch_warnings():
         warnings.filterwarnings("ignore", message=r"p-value (capped|floored)", category=UserWarning)
-        res = stats.anderson_ksamp(arrays, variant=variant, method=method)
+        try:
+            res = stats.anderson_ksamp(arrays, variant=variant, method=method)
+        except ValueError as exc:
+            # SciPy's table interpolation fails on some degenerate inputs (e.g. every sample
+            # holding one value, two distinct values in all): no p-value exists for them.
+            raise StatsInputError(
+                f"the Anderson-Darling test has no p-value for these samples ({exc}); they "
+                "are too degenerate (e.g. each sample one repeated value)"
+            ) from None
     p_value = float(res.pvalue)
     bounded = method is None and (p_value >= 0.25 or p_value <= 0.001)
     return AndersonDarlingResult(

@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import io
 import math
-import shutil
 import struct
 import time
 from collections.abc import Callable, Iterator
@@ -31,11 +30,8 @@ import numpy as np
 import pytest
 
 from emotive.serve.testing import running_server
-from tools import require_tool
+from tools import headless_chromium
 
-#: Flags that give headless Chromium a software WebGL 2 (SwiftShader through ANGLE).
-CHROMIUM_FLAGS = ("--use-angle=swiftshader", "--enable-unsafe-swiftshader",
-                  "--ignore-gpu-blocklist")
 #: A small page: WebGL on SwiftShader renders every pixel on the CPU.
 VIEWPORT = {"width": 960, "height": 600}
 #: The part of the page right of the control panel: only the 3-D view.
@@ -61,18 +57,7 @@ POLL_MS = 200
 @pytest.fixture(scope="module")
 def browser() -> Iterator[Any]:
     """Headless Chromium, launched once for the module."""
-    try:
-        from playwright.sync_api import sync_playwright
-    except ImportError:
-        require_tool(False, "Playwright is not installed (pip install playwright; its bundled "
-                     "driver is enough, no browser download)")
-    exe = shutil.which("chromium") or shutil.which("chromium-browser")
-    require_tool(exe is not None, "Chromium is not installed (apt-get install chromium)")
-    with sync_playwright() as pw:
-        chromium = pw.chromium.launch(executable_path=exe, args=list(CHROMIUM_FLAGS),
-                                      timeout=HANG_SECONDS * 1000)
-        yield chromium
-        chromium.close()
+    yield from headless_chromium(HANG_SECONDS)
 
 
 def _new_page(browser: Any) -> Any:

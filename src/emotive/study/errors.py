@@ -1,0 +1,13 @@
+"""Typed errors of the perceptual-study kit; each message names the input and the fix."""
+
+from __future__ import annotations
+
+from emotive.errors import ConfigError, EmotiveError
+
+
+class StudyError(EmotiveError):
+    """A study folder, database or server setting that cannot be used as given."""
+
+
+class StudyConfigError(StudyError, ConfigError):
+    """A ``study.toml`` with a missing or bad key or value."""
