@@ -17,18 +17,36 @@ past-to-visible term).
 
 Weights are random (the speed does not depend on them), so no data or checkpoint is needed.
 One torch thread, as in the gait benchmark.
+
+The live stream (``python -m bench.bench_fcrbm``, the committed checkpoint): foot skate of
+streamed agents against real walks (:func:`stream_skate_rows`, needs the data) and the tick
+times of an ``emotive serve --model fcrbm`` scene while 50 agents are added
+(:func:`add_tick_rows`).
 """
 
 from __future__ import annotations
 
+import time
 from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
 import torch
 
-from bench.common import comparison, median_seconds
+from bench.common import comparison, median_seconds, pinned_threads, print_rows
+from emotive.core.roles import resolve_roles
+from emotive.data import dataset_dir
+from emotive.eval.feet import foot_skating
+from emotive.io.bvh import read_bvh
+from emotive.models.fcrbm.generate import load_fcrbm_model
 from emotive.models.fcrbm.model import FCRBM
+from emotive.models.fcrbm.stream import FCRBMStream
 from emotive.models.fcrbm.training import load_fcrbm_settings
+from emotive.paths import figure8
+from emotive.serve.engines import load_engine
+from emotive.serve.messages import to_command
+from emotive.serve.settings import ServeSettings
+from emotive.serve.simulation import Simulation
 
 CONFIG = Path(__file__).resolve().parents[1] / "configs" / "fcrbm.toml"
 #: Visible units of the Bandai walks after the codec drops the constant dimensions.
@@ -114,3 +132,99 @@ def _run(agents: tuple[int, ...], frames: int, repeats: int) -> list[dict]:
     print(f"fcrbm training: {epoch['config']:.1f} s per epoch ({epoch['paper']:.1f} s at the "
           "paper's sizes)", flush=True)
     return out
+
+
+# --------------------------------------------------------------------------- the live stream
+
+#: Emotions of the streamed skate rows, and the dataset-1 styles they are compared with.
+STREAM_EMOTIONS = ("happy", "sad", "angry", "neutral")
+
+
+def stream_skate_rows(clips: list, agents: int = 4, seconds: float = 10.0) -> list[dict]:
+    """Foot skate of FCRBM stream agents per emotion against real dataset-1 walks.
+
+    The evaluation suite's measure (:func:`emotive.eval.feet.foot_skating`, contacts detected
+    from the motion) of ``agents`` agents streamed on a figure-8 for ``seconds``, against its
+    mean over the real walks of that emotion in ``clips`` (neutral: the normal walks), as
+    :func:`bench.bench_gait.skate_rows` measures the gait stream.
+    """
+    model = load_fcrbm_model()
+    rows = []
+    for emotion in STREAM_EMOTIONS:
+        stream = FCRBMStream(model, seed=0)
+        stream.add_agents([figure8()] * agents, [emotion] * agents)
+        world = np.stack([stream.step().world for _ in range(round(seconds * stream.fps))], 1)
+        roles = resolve_roles(stream.skeleton)
+        ours = float(np.mean([foot_skating(w, roles, stream.fps).mean_speed for w in world]))
+        style = "normal" if emotion == "neutral" else emotion
+        real = [read_bvh(c) for c in clips if f"_walk_{style}_" in c.name]
+        base = float(np.mean([foot_skating(r.positions_with_end_sites(),
+                                           resolve_roles(r.skeleton), r.fps).mean_speed
+                              for r in real]))
+        rows.append(comparison(f"fcrbm_stream_skate[{emotion}, suite measure]", "m/s", ours,
+                               base, f"real dataset-1 {style} walks", higher_is_better=False))
+        print(f"fcrbm stream skate, {emotion}: {ours:.3f} m/s against {base:.3f} real "
+              f"({ours / base:.2f}x)", flush=True)
+    return rows
+
+
+def add_tick_rows(walking: int = 4, added: int = 50, after: float = 3.0) -> list[dict]:
+    """Tick times of an ``emotive serve --model fcrbm`` scene while ``added`` agents join.
+
+    The server's own :class:`~emotive.serve.simulation.Simulation` (in this process, frames
+    discarded) with ``walking`` agents already walking; ``added`` ``add_agent`` commands,
+    prepared beforehand as the server's preparer does, are submitted at once, and every
+    tick from then until ``after`` seconds after the last is in the frames is kept. Rows: the p50,
+    p99 and largest tick (commands, step and encoding, ms) against the 100 ms target.
+    """
+    class Discard:
+        def frame(self, data: bytes) -> None:
+            pass
+
+        def notice(self, client: int, message: dict) -> None:
+            pass
+
+    engine = load_engine("fcrbm")
+    sim = Simulation(engine, ServeSettings(model="fcrbm"), Discard())
+    labels = STREAM_EMOTIONS
+
+    def command(k: int):
+        return to_command({"type": "add_agent", "path": "figure8",
+                           "emotion": labels[k % len(labels)]},
+                          engine.labels, engine.points_over)
+
+    sim.start()
+    try:
+        for f in [sim.submit(command(k)) for k in range(walking)]:
+            f.result(timeout=120)
+        time.sleep(1.0)
+        commands = [command(k) for k in range(added)]
+        first = sim.frames
+        futures = [sim.submit(c) for c in commands]
+        joined = sum(f.exception(timeout=120) is None for f in futures)
+        deadline = time.monotonic() + 120.0
+        while getattr(engine.generator, "warming", ()) and time.monotonic() < deadline:
+            time.sleep(0.05)  # deferred warm-up: until every new agent is in the frames
+        time.sleep(after)
+        with sim._lock:
+            ticks = np.array(list(sim._steps)[-(sim.frames - first):]) * 1000.0
+    finally:
+        sim.stop()
+    p50, p99 = np.percentile(ticks, [50, 99])
+    print(f"fcrbm serve, {added} added to {walking} ({joined} joined): tick p50 {p50:.1f} ms, "
+          f"p99 {p99:.1f} ms, max {ticks.max():.1f} ms over {len(ticks)} ticks", flush=True)
+    name = f"fcrbm_serve_add[{added} agents to {walking}, tick"
+    return [comparison(f"{name} {which}]", "ms", float(value), 100.0, "target: 100 ms",
+                       higher_is_better=False)
+            for which, value in (("p50", p50), ("p99", p99), ("max", ticks.max()))]
+
+
+def main() -> None:
+    """The stream's rows: ``python -m bench.bench_fcrbm`` (skate needs the data)."""
+    d1 = sorted((dataset_dir("bandai-namco-1") / "data").glob("*.bvh"))
+    with pinned_threads():
+        print_rows(lambda: add_tick_rows() + stream_skate_rows(d1))
+
+
+if __name__ == "__main__":
+    main()

@@ -72,6 +72,7 @@ def main() -> None:
         ("mar", lambda: bench_mar.run(frames=60 if args.quick else 200,
                                       baseline_frames=10 if args.quick else 20)),
         ("fcrbm", lambda: bench_fcrbm.run(repeats=1 if args.quick else 3)),
+        ("fcrbm_stream", lambda: bench_fcrbm.add_tick_rows() + bench_fcrbm.stream_skate_rows(d1)),
         ("lgb", lambda: bench_lgb.run(emotions=("sad",) if args.quick else bench_lgb.EMOTIONS,
                                       repeats=1 if args.quick else 3)),
     ):

@@ -10,6 +10,9 @@ import pytest
 
 from emotive.serve.engines import _optional_module, load_engine
 from emotive.serve.errors import ServeError
+from emotive.serve.messages import to_command
+from emotive.serve.settings import ServeSettings
+from emotive.serve.simulation import JOIN_PER_TICK, Simulation
 from emotive.serve.testing import running_server
 from serve_client import WsClient
 
@@ -17,6 +20,8 @@ from serve_client import WsClient
 async def _two_agents(url: str):
     async with WsClient(url) as client:
         ids = await client.add_agents(2, emotion={"valence": 0.6, "arousal": 0.4})
+        # FCRBM agents warm up over the first ticks before they are in the frames.
+        await client.wait_for(lambda: client.frames and len(client.frames[-1][1].ids) == 2)
         frames = await client.frames_after(15)
         return ids, frames
 
@@ -52,3 +57,30 @@ def test_optional_engines_stream(settings, model, backend):
 def test_a_missing_optional_module_is_a_typed_error():
     with pytest.raises(ServeError, match=r"--backend onnx needs the module emotive\.nothing_here"):
         _optional_module("emotive.nothing_here", "--backend onnx")
+
+
+class _Discard:
+    def frame(self, data: bytes) -> None:
+        pass
+
+    def notice(self, client: int, message: dict) -> None:
+        pass
+
+
+def test_fcrbm_agents_join_a_tick_without_warm_up_work(monkeypatch):
+    stream_module = pytest.importorskip("emotive.models.fcrbm.stream")
+    sampled: list[int] = []
+    gibbs = stream_module.gibbs_frame
+    monkeypatch.setattr(stream_module, "gibbs_frame",
+                        lambda net, w, window, *a: sampled.append(len(window)) or gibbs(
+                            net, w, window, *a))
+    engine = load_engine("fcrbm")
+    sim = Simulation(engine, ServeSettings(model="fcrbm"), _Discard())
+    command = to_command({"type": "add_agent", "path": "figure8", "emotion": "sad=0.5,old=0.5"},
+                         engine.labels, engine.points_over)
+    futures = [sim.submit(command) for _ in range(50)]
+    sim._apply_pending()  # a tick's commands, on this thread: joining is bookkeeping only
+    assert sampled == [] and len(engine) == JOIN_PER_TICK
+    assert all(f.done() for f in futures[:JOIN_PER_TICK])
+    sim._tick()  # the step samples each agent once (plus the bounded warm-up)
+    assert sum(sampled) <= len(engine) + stream_module.WARMUP_BUDGET

@@ -1,6 +1,6 @@
 """A root path that follows the feet: the planted foot stays where it is.
 
-Generators that predict the root's velocity apart from the legs (the FCRBM, issue 6) can glide:
+Generators that predict the root's velocity apart from the legs (the FCRBM) can glide:
 the root keeps its speed while the legs slow down or step in place. :func:`root_from_stance`
 replaces the root's horizontal displacement of each frame by the one that keeps the stance
 foot still on the ground:
@@ -57,21 +57,52 @@ def stance_weights(heights: np.ndarray, leg: float,
     """Stance point and foot-driven share of each frame step.
 
     Args:
-        heights: ``(T, P)`` height of each foot point above its ground, metres.
+        heights: ``(T, ..., P)`` height of each foot point above its ground, metres.
         leg: leg length ``L``, metres.
         thresholds: ``height_on`` and ``height_off`` (x ``L``) bound the ramp of the share.
 
     Returns:
-        ``(T - 1,)`` index of the stance point of each step ``t - 1 -> t`` and ``(T - 1,)``
-        share in ``[0, 1]`` of the foot-driven displacement.
+        ``(T - 1, ...)`` index of the stance point of each step ``t - 1 -> t`` and
+        ``(T - 1, ...)`` share in ``[0, 1]`` of the foot-driven displacement.
     """
     th = thresholds or ContactThresholds()
     pair = 0.5 * (heights[1:] + heights[:-1])
-    point = pair.argmin(axis=1)
-    low = pair[np.arange(len(pair)), point]
+    point = pair.argmin(axis=-1)
+    low = np.take_along_axis(pair, point[..., None], -1)[..., 0]
     on, off = th.height_on * leg, th.height_off * leg
     share = np.clip((off - low) / (off - on), 0.0, 1.0)
     return point, share
+
+
+def stance_shift(previous: np.ndarray, current: np.ndarray, ground: np.ndarray, leg: float,
+                 thresholds: ContactThresholds | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The causal step of :func:`root_from_stance`, one frame of ``B`` agents, unsmoothed.
+
+    What the body must move by horizontally so that the stance point (the foot point lowest
+    over the two frames) stays where it was, times the share of the step that is
+    foot-driven (:func:`stance_weights`). Streams call it frame by frame with the frames so
+    far; the heights are taken above each point's ``ground`` (e.g. its standing height)
+    instead of the clip's own ground, which needs the whole clip.
+
+    Args:
+        previous: ``(B, P, 3)`` the foot points (heels and toes) in the last frame, metres,
+            in any frame that moves with the body (e.g. the root's, heading removed).
+        current: ``(B, P, 3)`` the same points in this frame.
+        ground: ``(P,)`` or ``(B, P)`` each point's height when it stands on the ground.
+        leg: leg length ``L``, metres.
+        thresholds: ``height_on`` and ``height_off`` (x ``L``) bound the foot-driven share.
+
+    Returns:
+        ``(B, 2)`` horizontal ``(x, z)`` move of the body, metres (minus the stance point's
+        displacement, times the share), and ``(B,)`` the share in ``[0, 1]``.
+    """
+    heights = np.stack((previous[..., UP_AXIS], current[..., UP_AXIS])) - ground
+    point, share = stance_weights(heights, leg, thresholds)
+    point, share = point[0], share[0]
+    rows = np.arange(len(point))
+    axes = list(GROUND_AXES)
+    slide = current[rows, point][:, axes] - previous[rows, point][:, axes]
+    return -share[:, None] * slide, share
 
 
 def root_from_stance(

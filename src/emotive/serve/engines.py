@@ -131,11 +131,13 @@ def _gait_engine(backend: str, seed: int) -> Engine:
 def _fcrbm_engine(seed: int) -> Engine:
     stream_module = _optional_module(FCRBM_STREAM, "--model fcrbm")
     generate = importlib.import_module("emotive.models.fcrbm.generate")
-    stream = stream_module.FCRBMStream(generate.load_fcrbm_model(), seed=seed)
+    # Deferred: new agents warm up over the next ticks, a bounded number of frames each, so
+    # that adding many does not stall the scene.
+    stream = stream_module.FCRBMStream(generate.load_fcrbm_model(), seed=seed, deferred=True)
     skeleton = stream.skeleton
     mover = int(np.flatnonzero(np.asarray(skeleton.parents) < 0)[0])
     return Engine(stream, skeleton, getattr(stream, "mover", mover), stream.rest, "fcrbm",
-                  "torch")
+                  "torch", getattr(stream, "points_over", None))
 
 
 def load_engine(model: str = "gait", backend: str = "torch", seed: int = 0) -> Engine:

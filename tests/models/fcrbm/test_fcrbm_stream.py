@@ -12,6 +12,7 @@ import torch
 
 from emotive.core.motion import Motion
 from emotive.core.ops import heading
+from emotive.data.emotion import ALL_LABELS
 from emotive.errors import EmotionError, EmotiveError, PathError
 from emotive.models.fcrbm.generate import (
     FCRBMDivergedError,
@@ -46,7 +47,7 @@ def test_three_agents_walk_their_paths(model):
         stream.skeleton.end_site_parents)
     assert last.agents == tuple(ids) == stream.agents
     assert last.rotations.shape == (3, j, 4) and last.positions.shape == (3, j, 3)
-    assert last.world.shape == (3, p, 3) and last.emotion.shape == (3, 4)
+    assert last.world.shape == (3, p, 3) and last.emotion.shape == (3, len(ALL_LABELS))
     assert last.root.shape == (3, 2) and last.valence_arousal.shape == (3, 2)
     for f in frames:
         assert all(np.isfinite(a).all() for a in (f.rotations, f.positions, f.world, f.root))
@@ -69,7 +70,7 @@ def test_three_agents_walk_their_paths(model):
             assert arc[-1] - arc[0] > 2.0
             assert np.all(np.diff(arc) > -0.05)  # forward along the path, never back
     assert stream.diverged == 0
-    np.testing.assert_allclose(last.emotion[0], [1, 0, 0, 0])
+    np.testing.assert_allclose(last.emotion[0], np.eye(len(ALL_LABELS))[0])  # happy
     np.testing.assert_allclose(last.valence_arousal[2], [0.5, 0.8])
 
 
@@ -138,7 +139,7 @@ def test_set_target_and_set_path(model):
     target = np.array([1.5, 4.0])
     path = stream.set_target(a, target)
     np.testing.assert_allclose(path.position(path.length), target, atol=1e-6)
-    frames = run(stream, 120)
+    frames = run(stream, 180)
     assert np.linalg.norm(frames[-1].root[0] - target) < 0.1  # arrives, stays at the end
     here = frames[-1].root[0]
     new = waypoints(np.array([[here[0] + 1.0, here[1]], [here[0] + 1.0, here[1] + 20.0]]))
@@ -230,7 +231,7 @@ def test_context_weights_and_gibbs_frame_match_the_network(model):
 
 def test_rest_pose_and_attributes(model):
     stream = FCRBMStream(model)
-    assert stream.labels == ("happy", "sad", "angry", "neutral") and stream.fps == 30.0
+    assert stream.labels == ALL_LABELS and stream.fps == 30.0
     rest = stream.rest
     assert rest.num_frames == 1 and rest.skeleton is stream.skeleton
     world = rest.positions_with_end_sites()[0]

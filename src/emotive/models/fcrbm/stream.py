@@ -1,4 +1,4 @@
-"""Streaming FCRBM: many agents walking ground paths, stepped frame by frame (issue 25).
+"""Streaming FCRBM: many agents walking ground paths, stepped frame by frame.
 
 Legend: ``B`` agents, ``J`` joints, ``E`` end sites, ``C`` emotion labels, ``N`` order (past
 frames), ``D`` visible units.
@@ -24,16 +24,30 @@ Per model frame, every agent at once:
    its seed frames back (the window it started streaming from) and is counted in
    :attr:`FCRBMStream.diverged`; the stream goes on.
 4. Path following. The body comes from the model (:mod:`~emotive.models.fcrbm.stream_pose`);
-   its root is placed on the agent's path: the arc length advances by the model's own forward
-   step (clamped to ``[0, MAX_SPEED]``) times the agent's pace, the heading is the path's
-   tangent there and the height the model's. The model's sideways step and turn are dropped:
-   the path steers.
+   its root is placed on the agent's path: the arc length advances by how far the stance foot
+   moved back under the body (:mod:`~emotive.models.fcrbm.stream_feet`, the causal step of
+   :func:`~emotive.ik.stance_root.root_from_stance`; clamped to ``[0, MAX_SPEED]``,
+   low-passed) times the agent's pace, the heading is the path's tangent there and the height
+   the model's. The model's sideways step and turn are dropped: the path steers. Planted feet
+   are then held by the foot lock (:func:`emotive.ik.foot_lock.lock_feet`), as in the gait
+   network's stream. Near the end of an open path (or a :meth:`~FCRBMStream.set_target`
+   target) the agent slows down and blends to the standing pose, and stands there.
+
+Emotion. Any label of the emotion model, any blend of them or any valence/arousal point
+(:func:`~emotive.data.emotion.coerce_emotion`): the FCRBM reads only the valence/arousal
+(label blends through their mean point, Sec. IV-A; a point exactly as given).
 
 Starts. A new agent starts from the training data's mean frame and walks
 :data:`~emotive.models.fcrbm.generate.WARMUP_SECONDS` at the neutral point, then changes to its
 emotion over :data:`~emotive.models.fcrbm.generate.WARMUP_RAMP_SECONDS`, as
 :func:`~emotive.models.fcrbm.generate.generate_motion` does; those frames are not streamed,
-the agent appears in motion. Its seed drives that warm-up and every frame after it.
+the agent appears in motion. Its seed drives that warm-up and every frame after it. By default
+:meth:`~FCRBMStream.add_agents` runs the warm-up at once (0.3 s for one agent, 2.5-4 s for 50
+on the shared 2-core machine); a ``deferred`` stream (the live server's) only books the agent
+and warms it up inside the next steps, with the walking agents' batch: each waiting agent at
+least one frame per model frame, at most :data:`WARMUP_PER_STEP`, all of them together at
+most :data:`WARMUP_BUDGET` beyond one each, so a step's sampling is bounded by the agents in
+the scene (one agent appears after 12 frames, 50 added at once after about 90).
 
 Rate. The stream's frames are at :data:`OUTPUT_FPS`. The committed checkpoint runs at 30 fps,
 so each output frame is one model frame. A checkpoint at another rate is resampled at this
@@ -43,13 +57,10 @@ normalized linear interpolation, height and arc length linearly).
 
 Cost, on one thread of the shared 2-core development machine: about 5 ms a frame for one
 agent, 20-35 ms for 50 agents sharing three emotions, 60 ms for 50 with emotions of their own
-(each Gibbs iteration is the bulk; ``gibbs=10`` roughly thirds it); adding agents costs their
-warm-up, 0.3 s for one and 2.5-4 s for 50 at once.
+(each Gibbs iteration is the bulk; ``gibbs=10`` roughly thirds it).
 
-Limits. The FCRBM has no speed or stop control: at the end of an open path (or a
-:meth:`~FCRBMStream.set_target` target) the agent stays where the path ends and walks on the
-spot; a pace other than 1 changes how fast the root advances but not the steps, so the feet
-slide by the difference.
+Limits. A pace other than 1 changes how fast the root advances but not the steps (the foot
+lock holds what it can of the difference).
 """
 
 from __future__ import annotations
@@ -60,7 +71,7 @@ from dataclasses import replace
 import numpy as np
 import torch
 
-from emotive.data.emotion import DEFAULT_LABELS, EmotionLike, coerce_emotion
+from emotive.data.emotion import ALL_LABELS, DEFAULT_LABELS, EmotionLike, coerce_emotion
 from emotive.ik.solver import single_thread
 from emotive.models.fcrbm.adapter import SCALE_OFFSET
 from emotive.models.fcrbm.generate import (
@@ -71,6 +82,15 @@ from emotive.models.fcrbm.generate import (
     check_context,
     seed_frames,
     warmup_context,
+)
+from emotive.models.fcrbm.stream_feet import (
+    MIN_STOP_DISTANCE,
+    STOP_DISTANCE,
+    STOP_SECONDS,
+    StreamFeet,
+    lock_rows,
+    lock_state,
+    store_lock,
 )
 from emotive.models.fcrbm.stream_gibbs import ContextWeights, gibbs_frame
 from emotive.models.fcrbm.stream_pose import PoseDecoder, nlerp
@@ -90,8 +110,8 @@ from emotive.models.fcrbm.stream_state import (
 from emotive.paths import GroundPath
 from emotive.paths.bank import PathBank
 
-__all__ = ["MAX_SPEED", "OUTPUT_FPS", "PACE_RANGE", "FCRBMAgentError", "FCRBMFrame",
-           "FCRBMStream"]
+__all__ = ["MAX_SPEED", "OUTPUT_FPS", "PACE_RANGE", "STOP_DISTANCE", "WARMUP_BUDGET",
+           "FCRBMAgentError", "FCRBMFrame", "FCRBMStream"]
 
 #: Frame rate of :meth:`FCRBMStream.step`, frames per second.
 OUTPUT_FPS = 30.0
@@ -99,6 +119,14 @@ OUTPUT_FPS = 30.0
 MAX_SPEED = 4.0
 #: Metres of the gap to a new path (:meth:`FCRBMStream.set_path`) closed per metre walked.
 PATH_MERGE_SLOPE = 0.5
+#: Share of the change of the stance-driven step taken per model frame (a one-pole low-pass:
+#: the stance point's switches from heel to toe and foot to foot make the raw step jump).
+STEP_SMOOTHING = 0.5
+#: Deferred warm-up: warm-up frames of waiting agents sampled per model frame, all of them
+#: together (each waiting agent gets at least one).
+WARMUP_BUDGET = 64
+#: Deferred warm-up: most warm-up frames one waiting agent gets per model frame.
+WARMUP_PER_STEP = 8
 
 
 class FCRBMStream:
@@ -109,9 +137,14 @@ class FCRBMStream:
         seed: seed of the agents' samples (agent ``k`` draws from ``seed`` and ``k`` unless
             given a seed of its own).
         gibbs: Gibbs iterations per frame (default: the model's); fewer is faster and noisier.
+        deferred: warm new agents up over the next steps instead of in
+            :meth:`add_agents` (module docstring, "Starts"): what a live scene needs.
 
     Attributes:
-        labels: the ``C`` emotion labels of :attr:`FCRBMFrame.emotion`.
+        labels: the ``C`` emotion labels of :attr:`FCRBMFrame.emotion`: every label of the
+            emotion model (each has a valence/arousal point, which is all the FCRBM reads).
+        points_over: the labels a valence/arousal point is shown as a blend of (the four
+            emotions; the model gets the point itself).
         fps: frame rate of :meth:`step` (:data:`OUTPUT_FPS`).
         model_fps: frame rate of the model.
         skeleton: the rig of the frames.
@@ -131,7 +164,8 @@ class FCRBMStream:
         stream.set_emotion(a, {"valence": -0.8, "arousal": -0.6})
     """
 
-    def __init__(self, model: FCRBMModel, seed: int = 0, gibbs: int | None = None) -> None:
+    def __init__(self, model: FCRBMModel, seed: int = 0, gibbs: int | None = None,
+                 deferred: bool = False) -> None:
         if gibbs is not None and (isinstance(gibbs, bool) or not isinstance(gibbs, int)
                                   or gibbs < 1):
             raise FCRBMInputError(f"gibbs must be a whole number >= 1, got {gibbs!r}")
@@ -139,7 +173,9 @@ class FCRBMStream:
         self.network = model.network.eval()
         self.seed = int(seed)
         self.gibbs = model.network.config.gibbs if gibbs is None else gibbs
-        self.labels: tuple[str, ...] = DEFAULT_LABELS
+        self.labels: tuple[str, ...] = ALL_LABELS
+        self.points_over: tuple[str, ...] = DEFAULT_LABELS
+        self.deferred = bool(deferred)
         self.fps = OUTPUT_FPS
         self.model_fps = float(model.fps)
         self.skeleton = model.codec.skeleton
@@ -148,6 +184,9 @@ class FCRBMStream:
         self._pose = PoseDecoder(model.codec)
         self.rest = self._pose.rest(self.fps)
         self._weights = ContextWeights(self.network)
+        self._warm_weights = ContextWeights(self.network)
+        self._feet = StreamFeet.of(self._pose)
+        self._warm_frames = len(warmup_context(np.zeros((1, 2)), self.model_fps))
         self._paths = PathBank()
         self._agents: dict[int, AgentInfo] = {}
         self._order: list[int] = []
@@ -157,14 +196,19 @@ class FCRBMStream:
         self._start = torch.from_numpy(seed_frames(model))
         self._rows = self._new_rows(torch.zeros((0, *self._start.shape)), np.zeros((0, 2)),
                                     np.zeros((0, len(self.labels))), np.zeros(0), np.zeros(0),
-                                    np.zeros(0, dtype=np.int64))
+                                    np.zeros(0, dtype=np.int64), 0)
 
     # ----------------------------------------------------------------------------- agents
 
     @property
     def agents(self) -> tuple[int, ...]:
-        """Ids of the live agents, in batch order."""
+        """Ids of the live agents, in batch order (those still warming up included)."""
         return tuple(self._order)
+
+    @property
+    def warming(self) -> tuple[int, ...]:
+        """Ids of the agents still warming up (deferred), not yet in the frames."""
+        return tuple(a for a, w in zip(self._order, self._rows.warm, strict=True) if w > 0)
 
     @property
     def model_frames(self) -> int:
@@ -210,14 +254,18 @@ class FCRBMStream:
             raise FCRBMInputError("add_agents: give one emotion, start, pace and seed per path")
         for path, start in zip(paths, starts, strict=True):
             check_path(path, start)
-        schedules = [coerce_emotion(e, self.labels) for e in emotions]
+        schedules = [coerce_emotion(e, self.labels, self.points_over) for e in emotions]
         ids = list(range(self._next_id, self._next_id + n))
         own = [agent_seed(self.seed, a) for a in ids] if seeds is None else [
             check_seed(s) for s in seeds]
         gens = [torch.Generator().manual_seed(s) for s in own]
         va, weights = emotion_at(schedules, [0.0] * n, len(self.labels))
-        with single_thread():
-            window = self._warm_up(self._context(va), gens)
+        context = self._context(va)
+        if self.deferred:
+            window, warm = self._start.expand(n, -1, -1).clone(), self._warm_frames
+        else:
+            with single_thread():
+                window, warm = self._warm_up(context, gens), 0
         slots = np.array([self._paths.add(p) for p in paths], dtype=np.int64)
         self._next_id += n
         for a, schedule, gen in zip(ids, schedules, gens, strict=True):
@@ -225,7 +273,7 @@ class FCRBMStream:
         self._order.extend(ids)
         self._rows = self._rows.join(self._new_rows(window, va, weights,
                                                     np.asarray(starts, dtype=np.float64),
-                                                    np.asarray(paces), slots))
+                                                    np.asarray(paces), slots, warm))
         return ids
 
     def remove_agent(self, agent: int) -> None:
@@ -247,7 +295,7 @@ class FCRBMStream:
             FCRBMAgentError: unknown agent. EmotionError: a bad emotion.
         """
         k = self._index(agent)
-        schedule = coerce_emotion(emotion, self.labels)
+        schedule = coerce_emotion(emotion, self.labels, self.points_over)
         self._agents[agent] = replace(self._agents[agent], schedule=schedule,
                                       start=self._model_frames)
         va, weights = emotion_at([schedule], [0.0], len(self.labels))
@@ -359,12 +407,63 @@ class FCRBMStream:
         return window
 
     def _new_rows(self, window: torch.Tensor, va: np.ndarray, weights: np.ndarray,
-                  arc: np.ndarray, pace: np.ndarray, slot: np.ndarray) -> Rows:
+                  arc: np.ndarray, pace: np.ndarray, slot: np.ndarray, warm: int) -> Rows:
         body = self._pose.body(window[:, -1].numpy())
         n = len(va)
-        return Rows(window, window.clone(), self._context(va), va, weights, body.rotations,
-                     body.rotations.copy(), body.height, body.height.copy(), arc, arc.copy(),
-                     np.zeros((n, 2)), pace, slot)
+        return Rows(window=window, seed=window.clone(), context=self._context(va), va=va,
+                    weights=weights, body=body.rotations, body_prev=body.rotations.copy(),
+                    height=body.height, height_prev=body.height.copy(), arc=arc,
+                    arc_prev=arc.copy(), offset=np.zeros((n, 2)), pace=pace, slot=slot,
+                    warm=np.full(n, warm, dtype=np.int64), stop=np.zeros(n),
+                    feet=self._feet.local_feet(body.rotations, body.height),
+                    speed=np.zeros(n), **lock_rows(n))
+
+    def _sample(self, rows: np.ndarray, context: np.ndarray, weights: ContextWeights
+                ) -> tuple[torch.Tensor, np.ndarray]:
+        """One Gibbs frame of agents ``rows`` (batch indices) at ``(n, 2)`` contexts.
+
+        Their windows move on by the new frame. A frame out of the data's range resets the
+        agent: a walking agent to its seed frames (the frame returned is the seed's last), a
+        warming one to the start of its warm-up.
+
+        Returns:
+            ``(n, D)`` the new frames and ``(n,)`` which of them diverged.
+        """
+        r = self._rows
+        if not len(rows):
+            return torch.zeros(0, r.window.shape[-1]), np.zeros(0, dtype=bool)
+        gens = [self._agents[self._order[k]].generator for k in rows]
+        window = r.window[rows]
+        v = gibbs_frame(self.network, weights, window, context, self._uniforms(gens))
+        bad = ~(v.abs() <= DIVERGED).all(1)
+        warming = torch.as_tensor(r.warm[rows] > 0)
+        reset = torch.where(warming[:, None, None], self._start, r.seed[rows])
+        v[bad] = reset[bad, -1]
+        window = torch.cat((window[:, 1:], v[:, None]), 1)
+        window[bad] = reset[bad]
+        r.window[rows] = window
+        bad_np = bad.numpy()
+        r.warm[rows[bad_np & (r.warm[rows] > 0)]] = self._warm_frames + 1
+        self.diverged += int(bad.sum())
+        return v, bad_np
+
+    def _warm_context(self, rows: np.ndarray) -> np.ndarray:
+        """``(n, 2)`` the warm-up context of the next frame of warming agents ``rows``."""
+        r = self._rows
+        ramp = warmup_context(r.context[rows], self.model_fps)  # (W, n, 2)
+        return ramp[self._warm_frames - r.warm[rows], np.arange(len(rows))]
+
+    def _warm_more(self) -> None:
+        """Deferred warm-up frames beyond the one of this model frame, within the budget."""
+        r = self._rows
+        waiting = np.flatnonzero(r.warm > 0)
+        extra = min(WARMUP_PER_STEP, WARMUP_BUDGET // max(len(waiting), 1)) - 1
+        for _ in range(extra):
+            waiting = np.flatnonzero(r.warm > 0)
+            if not len(waiting):
+                return
+            self._sample(waiting, self._warm_context(waiting), self._warm_weights)
+            r.warm[waiting] -= 1
 
     def _model_step(self) -> None:
         """Generate the next model frame of every agent and move it along its path."""
@@ -372,30 +471,96 @@ class FCRBMStream:
         r = self._rows
         if not self._order:
             return
-        gens = [self._agents[a].generator for a in self._order]
-        v = gibbs_frame(self.network, self._weights, r.window, r.context, self._uniforms(gens))
-        bad = ~(v.abs() <= DIVERGED).all(1)
-        v[bad] = r.seed[bad, -1]
-        r.window = torch.cat((r.window[:, 1:], v[:, None]), 1)
-        r.window[bad] = r.seed[bad]
-        self.diverged += int(bad.sum())
-        body = self._pose.body(v.numpy())
-        step = np.clip(body.forward, 0.0, MAX_SPEED / self.model_fps) * r.pace
         bank = self._paths
-        arc = r.arc + step
-        arc = np.where(bank.closed(r.slot), arc, np.minimum(arc, bank.length(r.slot)))
-        gap = np.linalg.norm(r.offset, axis=1)
-        shrink = np.maximum(gap - PATH_MERGE_SLOPE * step, 0.0) / np.maximum(gap, 1e-12)
-        r.offset = r.offset * shrink[:, None]
-        r.body_prev, r.body = r.body, body.rotations
-        r.height_prev, r.height = r.height, body.height
-        r.arc_prev, r.arc = r.arc, arc
+        warming = r.warm > 0
+        remaining = np.where(bank.closed(r.slot), np.inf, bank.length(r.slot) - r.arc)
+        # Stop where walking on at a falling speed (linear, over STOP_SECONDS) ends at the end;
+        # once stopping, go on until standing unless the path moved on (hysteresis).
+        brake = np.maximum(0.5 * r.speed * STOP_SECONDS, MIN_STOP_DISTANCE)
+        halt = ~warming & ((remaining <= brake)
+                           | ((r.stop > 0) & (remaining <= STOP_DISTANCE)))
+        rate = np.where(halt, 1.0, -1.0) / (STOP_SECONDS * self.model_fps)
+        before = r.stop
+        r.stop = np.where(warming, 0.0, np.clip(r.stop + rate, 0.0, 1.0))
+        # An agent standing at the end of its path is not sampled (its window is kept).
+        rows = np.flatnonzero(~(halt & (r.stop >= 1.0)))
+        context = r.context[rows].copy()
+        wait = warming[rows]
+        if wait.any():
+            context[wait] = self._warm_context(rows[wait])
+        v, _ = self._sample(rows, context, self._weights)
+        r.warm[rows[wait]] -= 1
+        if self.deferred:
+            self._warm_more()
+        ready = warming & (r.warm == 0)
+        if ready.any():
+            self._start_walking(np.flatnonzero(ready))
+        walk = ~wait
+        self._walk(rows[walk], v[torch.as_tensor(walk)].numpy(), before[rows[walk]],
+                   remaining[rows[walk]])
         self._update_emotions()
+
+    def _start_walking(self, rows: np.ndarray) -> None:
+        """Agents ``rows`` that finished their warm-up: seed frames, body, feet."""
+        r = self._rows
+        r.seed[rows] = r.window[rows]
+        body = self._pose.body(r.window[rows, -1].numpy())
+        r.body[rows] = r.body_prev[rows] = body.rotations
+        r.height[rows] = r.height_prev[rows] = body.height
+        r.arc_prev[rows] = r.arc[rows]
+        r.feet[rows] = self._feet.local_feet(body.rotations, body.height)
+
+    def _walk(self, rows: np.ndarray, v: np.ndarray, before: np.ndarray,
+              remaining: np.ndarray) -> None:
+        """Agents ``rows`` (walking, sampled) placed after their new ``(n, D)`` frames ``v``.
+
+        Each advances by the stance foot (:mod:`~emotive.models.fcrbm.stream_feet`), low-passed
+        by :data:`STEP_SMOOTHING`, and blended towards standing by its stop weight; a stopping
+        agent advances at least as a linear slowing down would (its remaining distance
+        shrinking as ``(1 - stop)^2``), so it stands at the path's end when its weight reaches
+        1. The other walking agents stand where they are.
+
+        Args:
+            rows: ``(n,)`` batch indices.
+            v: ``(n, D)`` their new frames.
+            before: ``(n,)`` their stop weights before this frame.
+            remaining: ``(n,)`` metres to the end of their paths (``inf``: closed).
+        """
+        r = self._rows
+        last = r.speed[rows] / self.model_fps
+        still = np.flatnonzero(r.warm == 0)
+        r.body_prev[still], r.height_prev[still] = r.body[still], r.height[still]
+        r.arc_prev[still] = r.arc[still]
+        r.speed[still] = 0.0
+        if not len(rows):
+            return
+        body = self._feet.blend(self._pose.body(v), r.stop[rows])
+        feet = self._feet.local_feet(body.rotations, body.height)
+        forward = np.clip(body.forward, 0.0, MAX_SPEED / self.model_fps)
+        step = self._feet.advance(r.feet[rows], feet, forward)
+        step = np.clip(step, 0.0, MAX_SPEED / self.model_fps) * r.pace[rows]
+        step = last + STEP_SMOOTHING * (step - last)
+        stop = r.stop[rows]
+        left = np.where(stop > before, (1.0 - stop) / np.maximum(1.0 - before, 1e-9), 1.0)
+        arrive = np.where(np.isfinite(remaining), remaining, 0.0) * (1.0 - left**2)
+        step = np.maximum(step * (1.0 - stop), arrive)
+        bank, slot = self._paths, r.slot[rows]
+        arc = r.arc[rows] + step
+        arc = np.where(bank.closed(slot), arc, np.minimum(arc, bank.length(slot)))
+        gap = np.linalg.norm(r.offset[rows], axis=1)
+        shrink = np.maximum(gap - PATH_MERGE_SLOPE * step, 0.0) / np.maximum(gap, 1e-12)
+        r.offset[rows] *= shrink[:, None]
+        r.body[rows], r.height[rows], r.feet[rows] = body.rotations, body.height, feet
+        r.speed[rows] = (arc - r.arc[rows]) * self.model_fps
+        r.arc[rows] = arc
 
     # ----------------------------------------------------------------------------- stepping
 
     def step(self) -> FCRBMFrame:
-        """Advance every agent by one frame (``1 / fps`` seconds) and return the new frame."""
+        """Advance every agent by one frame (``1 / fps`` seconds) and return the new frame.
+
+        Agents still warming up (deferred) are not in the frame.
+        """
         with single_thread(), torch.no_grad():
             self._frames += 1
             now = self._frames / self.fps
@@ -405,15 +570,19 @@ class FCRBMStream:
             return self._frame(min(max(weight, 0.0), 1.0))
 
     def _frame(self, weight: float) -> FCRBMFrame:
-        """The agents placed ``weight`` of the way from the previous model frame to the last."""
+        """The walking agents placed ``weight`` of the way from the last model frame but one."""
         r = self._rows
+        rows = np.flatnonzero(r.warm == 0)
+        body, height, arc = r.body[rows], r.height[rows], r.arc[rows]
         if weight < 1.0:
-            body = nlerp(r.body_prev, r.body, weight)
-            height = r.height_prev + weight * (r.height - r.height_prev)
-            arc = r.arc_prev + weight * (r.arc - r.arc_prev)
-        else:
-            body, height, arc = r.body, r.height, r.arc
-        xz = self._paths.position(r.slot, arc) + r.offset
-        placed = self._pose.place(body, height, self._paths.heading(r.slot, arc), xz)
-        return FCRBMFrame(tuple(self._order), placed.rotations, placed.positions, placed.world,
-                          r.weights.copy(), xz, r.va.copy())
+            body = nlerp(r.body_prev[rows], body, weight)
+            height = r.height_prev[rows] + weight * (height - r.height_prev[rows])
+            arc = r.arc_prev[rows] + weight * (arc - r.arc_prev[rows])
+        slot = r.slot[rows]
+        xz = self._paths.position(slot, arc) + r.offset[rows]
+        placed = self._pose.place(body, height, self._paths.heading(slot, arc), xz)
+        rotations, world, lock = self._feet.lock(lock_state(r, rows), placed.rotations,
+                                                 placed.world, r.speed[rows], self.fps)
+        store_lock(r, rows, lock)
+        return FCRBMFrame(tuple(self._order[k] for k in rows), rotations, placed.positions,
+                          world, r.weights[rows], xz, r.va[rows])

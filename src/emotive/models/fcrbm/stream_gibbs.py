@@ -1,4 +1,4 @@
-"""One Gibbs-sampled FCRBM frame for many agents at once, agents grouped by context (issue 25).
+"""One Gibbs-sampled FCRBM frame for many agents at once, agents grouped by context.
 
 The sampling is :meth:`FCRBM.generate <emotive.models.fcrbm.model.FCRBM.generate>`'s, one
 frame at a time: each agent's chain starts from its previous frame and runs ``gibbs``

@@ -1,4 +1,4 @@
-"""FCRBM frames to streamed poses: one frame per agent decoded and placed in the world (issue 25).
+"""FCRBM frames to streamed poses: one frame per agent decoded and placed in the world.
 
 :meth:`FrameCodec.decode <emotive.models.fcrbm.data.FrameCodec.decode>` turns a whole clip
 into a :class:`~emotive.core.motion.Motion`, integrating the root's path from its steps. A

@@ -71,7 +71,12 @@ class Rows:
     """Batched per-agent state, one row per agent in batch order.
 
     ``window``/``seed`` ``(B, N, D)`` tensors; ``context``/``va`` ``(B, 2)``; ``weights``
-    ``(B, C)``; ``body``/``body_prev`` ``(B, J, 4)``; ``offset`` ``(B, 2)``; the rest ``(B,)``.
+    ``(B, C)``; ``body``/``body_prev`` ``(B, J, 4)``; ``offset`` ``(B, 2)``; ``feet``
+    ``(B, 4, 3)`` the heel and toe points of the last model frame in the body's frame
+    (:meth:`~emotive.models.fcrbm.stream_feet.StreamFeet.local_feet`); ``lock_*`` the foot
+    lock's state (:class:`~emotive.ik.foot_lock.LockState`, one field each); the rest ``(B,)``:
+    ``warm`` the warm-up frames an agent has left (0: it walks), ``stop`` its blend to the
+    standing pose, ``speed`` its root speed (m/s).
     """
 
     window: torch.Tensor
@@ -88,6 +93,17 @@ class Rows:
     offset: np.ndarray
     pace: np.ndarray
     slot: np.ndarray
+    warm: np.ndarray
+    stop: np.ndarray
+    feet: np.ndarray
+    speed: np.ndarray
+    lock_previous: np.ndarray
+    lock_planted: np.ndarray
+    lock_anchor: np.ndarray
+    lock_correction: np.ndarray
+    lock_yaw_anchor: np.ndarray
+    lock_yaw_correction: np.ndarray
+    lock_released: np.ndarray
 
     def take(self, rows: np.ndarray) -> Rows:
         """The rows ``rows`` (indices), in that order."""
