@@ -16,6 +16,7 @@ from pathlib import Path
 from bench import (
     bench_bvh,
     bench_data,
+    bench_ddp,
     bench_fcrbm,
     bench_features,
     bench_gait,
@@ -26,6 +27,7 @@ from bench import (
     bench_readme,
     bench_serve,
     bench_study,
+    bench_synth,
 )
 from bench.common import machine_info, pinned_threads
 from emotive.data import dataset_dir
@@ -75,6 +77,10 @@ def main() -> None:
         ("fcrbm_stream", lambda: bench_fcrbm.add_tick_rows() + bench_fcrbm.stream_skate_rows(d1)),
         ("lgb", lambda: bench_lgb.run(emotions=("sad",) if args.quick else bench_lgb.EMOTIONS,
                                       repeats=1 if args.quick else 3)),
+        ("ddp", lambda: bench_ddp.run(repeats=1 if args.quick else 2,
+                                      max_clips=20 if args.quick else 0,
+                                      models=("gait",) if args.quick else bench_ddp.MODELS)),
+        ("synth", lambda: bench_synth.run(quick=args.quick)),
     ):
         print(f"running {name} ...", flush=True)
         with pinned_threads():

@@ -1,9 +1,10 @@
 """The ``emotive`` command line: one entry point, verb-first sub-commands.
 
 ``generate``, ``train``, ``transfer``, ``reconstruct``, ``retarget``, ``evaluate``, ``models``,
-``info``, ``features``, ``preview``, ``classify``, ``data``, ``serve``, ``export`` and
-``study``; each lives in :mod:`emotive.commands` and this module registers them. The old spellings
-``fcrbm train|generate`` and ``resample`` work for one release, with one deprecation line.
+``info``, ``features``, ``preview``, ``classify``, ``data``, ``serve``, ``export``, ``study``
+and ``synth``; each lives in :mod:`emotive.commands` and this module registers them. The old
+spellings ``fcrbm train|generate`` and ``resample`` work for one release, with one deprecation
+line.
 
 :func:`main` runs the app without click's own error handling, so that every invalid value,
 click's usage and range errors as well as every :class:`~emotive.errors.EmotiveError`, prints
@@ -35,6 +36,7 @@ from emotive.commands.resample import resample
 from emotive.commands.retarget import retarget
 from emotive.commands.serve import serve
 from emotive.commands.study import app as study_app
+from emotive.commands.synth import synth
 from emotive.commands.train import app as train_app
 from emotive.commands.transfer import transfer
 from emotive.errors import EmotiveError
@@ -80,6 +82,7 @@ app.add_typer(data_app, name="data")
 app.command("serve")(serve)
 app.add_typer(export_app, name="export")
 app.add_typer(study_app, name="study")
+app.command("synth")(synth)
 app.command("resample", hidden=True)(resample)
 app.add_typer(fcrbm_app, name="fcrbm", hidden=True)
 

@@ -131,6 +131,12 @@ EpochsOpt = Annotated[
     typer.Option("--epochs", help=r"Epochs in all (default: the config's \[train] epochs).",
                  min=1, show_default=False),
 ]
+NprocOpt = Annotated[
+    int,
+    typer.Option("--nproc", min=1, help="Training processes on this machine, data parallel "
+                 "over the same global batch (1 to its CPUs). Several machines: start the "
+                 "command with torchrun instead (see the docs)."),
+]
 
 
 def read_input(path: Path, unit: str = "auto"):
@@ -156,7 +162,7 @@ def deprecated(old: str, new: str) -> None:
 
 def run_training(load: Callable[[Path], tuple[Any, Any]], train: Callable[..., Any],
                  config: str | Path, out: Path, resume: bool, seed: int,
-                 epochs: int | None) -> Any:
+                 epochs: int | None, nproc: int | None = None) -> Any:
     """Read a TOML config, override its epochs if given, and train with progress bars.
 
     Args:
@@ -168,25 +174,35 @@ def run_training(load: Callable[[Path], tuple[Any, Any]], train: Callable[..., A
         resume: the command's ``--resume``.
         seed: the command's ``--seed``.
         epochs: the command's ``--epochs``; ``None`` keeps the config's.
+        nproc: the command's ``--nproc``, for a trainer that runs on several processes (or
+            under torchrun, :func:`emotive.models.distributed.run_parallel`); ``None``: a
+            trainer of one process, refused under torchrun.
 
     Returns:
-        What ``train`` returns.
+        What ``train`` returns; ``None`` on the processes of a torchrun job but the first.
 
     Raises:
         OutputError: ``out`` is a file or its folder cannot be written (before any work).
+        ConfigError: a bad ``--nproc``, or ``--nproc`` or a one-process trainer under torchrun.
+        TrainingProcessError: a training process failed; the others were stopped.
         typer.Exit: code 130 after Ctrl-C (``train`` has saved ``last.pt``).
     """
     from dataclasses import replace
 
     from emotive.configs import resolve_config
     from emotive.io.outputs import check_output_folder
+    from emotive.models.distributed import one_process_only, run_parallel
 
     check_output_folder(out, "--out")
     model_config, settings = load(resolve_config(config))
     if epochs is not None:
         settings = replace(settings, epochs=epochs)
     try:
-        return train(model_config, settings, progress=True, out_dir=out, resume=resume,
-                     seed=seed)
+        if nproc is None:
+            one_process_only()
+            return train(model_config, settings, progress=True, out_dir=out, resume=resume,
+                         seed=seed)
+        return run_parallel(train, model_config, settings, nproc=nproc, progress=True,
+                            out_dir=out, resume=resume, seed=seed)
     except KeyboardInterrupt:
         raise typer.Exit(130) from None

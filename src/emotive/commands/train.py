@@ -5,6 +5,8 @@ shipped in :mod:`emotive.configs`, by default the model's own) into a folder (``
 holding ``last.pt``, ``best.pt`` and ``log.csv``; Ctrl-C keeps the last finished epoch and
 ``--resume`` continues exactly. The classifier trains from the ``classifier`` recipe into
 one file and its model card, optionally with the leave-one-studio-out models for the card.
+``gait`` and ``classifier`` train data parallel on ``--nproc`` processes, or on several
+machines under torchrun (:mod:`emotive.models.distributed`).
 
 Heavy modules are imported inside the commands so that ``emotive --help`` stays fast.
 """
@@ -12,7 +14,7 @@ Heavy modules are imported inside the commands so that ``emotive --help`` stays 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
@@ -20,20 +22,29 @@ from emotive.commands.options import (
     SEED_MAX,
     ConfigOpt,
     EpochsOpt,
+    NprocOpt,
     ResumeOpt,
     SeedOpt,
     TrainOutOpt,
     run_training,
 )
 
+if TYPE_CHECKING:
+    from emotive.eval.classifier import ClassifierConfig
+
 app = typer.Typer(help="Train models on the real data sets.", no_args_is_help=True,
                   add_completion=False)
 
 
 def _report(result, out: Path, key: str, loss: str, val: str) -> None:
-    """One line: the files written, epochs, the last epoch's ``key`` and the best validation."""
+    """One line: the files written, epochs, the last epoch's ``key`` and the best validation.
+
+    Nothing for ``None``, a process of a torchrun job other than the first.
+    """
     from rich.console import Console
 
+    if result is None:
+        return
     last = result.history[-1] if result.history else {}
     Console(stderr=True).print(
         f"wrote {out / 'last.pt'}, {out / 'best.pt'} and {out / 'log.csv'}: "
@@ -49,11 +60,13 @@ def train_gait_command(
     resume: ResumeOpt = False,
     seed: SeedOpt = 0,
     epochs: EpochsOpt = None,
+    nproc: NprocOpt = 1,
 ) -> None:
     """Train the emotive gait network (Ctrl-C keeps the last epoch; --resume continues)."""
     from emotive.models.gait.training import load_gait_settings, train_gait
 
-    result = run_training(load_gait_settings, train_gait, config, out, resume, seed, epochs)
+    result = run_training(load_gait_settings, train_gait, config, out, resume, seed, epochs,
+                          nproc)
     _report(result, out, "train_total", "train loss", "validation loss")
 
 
@@ -115,29 +128,17 @@ def train_classifier_command(
                            help="Also train on each data set alone and test on the other "
                                 "(leave one studio out) for the card.")
     ] = True,
+    nproc: NprocOpt = 1,
 ) -> None:
     """Train the perceived-emotion classifier on real data, measure it, write it and its card."""
-    import hashlib
-    import time
     from dataclasses import replace
 
-    from rich.console import Console
-
     from emotive.configs import resolve_config
-    from emotive.eval.classifier_card import classifier_card
-    from emotive.eval.classifier_training import (
-        leave_one_studio_out,
-        load_tracks,
-        read_config,
-        split_features,
-        studio_proxy,
-        train_classifier,
-        unsure_rates,
-    )
-    from emotive.io.atomic import atomic_output, output_error
+    from emotive.eval.classifier_training import read_config
+    from emotive.io.atomic import output_error
     from emotive.io.outputs import check_output_folder
+    from emotive.models.distributed import run_parallel
 
-    console = Console(stderr=True)
     check_output_folder(out, "--out")
     try:
         out.mkdir(parents=True, exist_ok=True)
@@ -146,13 +147,47 @@ def train_classifier_command(
     cfg = read_config(resolve_config(config))
     cfg = replace(cfg, seed=cfg.seed if seed is None else seed,
                   epochs=cfg.epochs if epochs is None else epochs)
+    run_parallel(train_classifier_job, cfg, out, studios, nproc=nproc)
+
+
+def train_classifier_job(cfg: ClassifierConfig, out: Path, studios: bool) -> None:
+    """The classifier command's work in one of its processes; process 0 prints and writes.
+
+    Args:
+        cfg: the :class:`~emotive.eval.classifier.ClassifierConfig`.
+        out: the folder of the classifier file and its card.
+        studios: also the leave-one-studio-out models.
+    """
+    import hashlib
+    import time
+
+    from rich.console import Console
+
+    from emotive.eval.classifier_card import classifier_card
+    from emotive.eval.classifier_training import (
+        leave_one_studio_out,
+        load_tracks,
+        split_features,
+        studio_proxy,
+        train_classifier,
+        unsure_rates,
+    )
+    from emotive.io.atomic import atomic_output
+    from emotive.models.distributed import current_world
+
+    main = current_world().is_main
+    console = Console(stderr=True, quiet=not main)
     start = time.perf_counter()
-    tracks = load_tracks(cfg.datasets, progress=True)
-    data = split_features(tracks, cfg, progress=True)
+    tracks = load_tracks(cfg.datasets, progress=main)
+    data = split_features(tracks, cfg, progress=main)
     model = train_classifier(cfg, progress=True, data=data)
-    if studios and len(cfg.datasets) == 2:
+    studios = studios and len(cfg.datasets) == 2
+    if studios:
         console.print("leave one studio out: training on each data set alone ...")
         loso, models = leave_one_studio_out(cfg, data, progress=True)
+    if not main:
+        return
+    if studios:
         model.metrics["leave_one_studio_out"] = loso
         model.metrics["studio_proxy"] = studio_proxy(models[cfg.datasets[0]], tracks,
                                                      cfg.datasets[1])

@@ -72,6 +72,7 @@ from emotive.eval.classifier_augment import augment
 from emotive.eval.classifier_nets import build_net
 from emotive.eval.classifier_probes import joint_noise, spinning_figure
 from emotive.io.atomic import atomic_output
+from emotive.models.distributed import current_world
 
 #: Length and hop of the held-out windows, seconds.
 EVAL_WINDOW_SECONDS = 4.0
@@ -389,9 +390,11 @@ def train_classifier(config: ClassifierConfig | None = None, progress: bool = Fa
 
     Returns:
         The classifier with ``metrics["val"]``, ``metrics["test"]`` and ``metrics["test_by_
-        dataset"]`` from :func:`measure`. Deterministic for a config on CPU.
+        dataset"]`` from :func:`measure` (on process 0 of several: the others' model is
+        unfinished, :mod:`emotive.models.distributed`). Deterministic for a config on CPU.
     """
-    config = config or ClassifierConfig()
+    config, world = config or ClassifierConfig(), current_world()
+    progress = progress and world.is_main
     if data is None:
         data = split_features(load_tracks(config.datasets, progress), config, progress)
     if not data["train"]:
@@ -414,7 +417,7 @@ def train_classifier(config: ClassifierConfig | None = None, progress: bool = Fa
     bars = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                     TimeElapsedColumn(), TextColumn("{task.fields[info]}"),
                     console=Console(stderr=True), disable=not progress, transient=True)
-    with bars:
+    with bars, world.batch_dropout(net, config.batch_size):
         epochs_task = bars.add_task(f"{description}: epochs", total=config.epochs, info="")
         batch_task = bars.add_task("batches", total=config.steps_per_epoch, info="")
         for epoch in range(config.epochs):
@@ -431,6 +434,8 @@ def train_classifier(config: ClassifierConfig | None = None, progress: bool = Fa
             if progress:
                 bars.console.print(f"{description}: epoch {epoch + 1}/{config.epochs}: {summary}")
     assert best_state is not None
+    if not world.is_main:
+        return model
     net.load_state_dict(best_state)
     net.eval()
     _calibrate(model, data["val"])
@@ -447,23 +452,26 @@ def _train_epoch(model: EmotionClassifier, sampler: _Sampler, val: Sequence[Clip
                  rng: np.random.Generator, batch_done: Callable[[], None]) -> float:
     """One epoch of updates, then the validation score (:func:`_score`; 0 without clips)."""
     config, net, mean, std = model.config, model.net, model.mean, model.std
-    label_loss, style_loss = losses
+    label_loss, style_loss, world = *losses, current_world()
     net.train()
     for _ in range(config.steps_per_epoch):
         x, y, style, va = sampler.draw(rng, config.batch_size)
+        mine, part = world.split(len(y), sampler.label_weight[y] * (y >= 0), style >= 0)
+        x, y, style, va = x[mine], y[mine], style[mine], va[mine]
         _, logits, va_out, style_out = net.heads(torch.from_numpy((x - mean) / std))
-        y, style = torch.from_numpy(y), torch.from_numpy(style)
-        loss = config.valence_arousal_weight * ((va_out - torch.from_numpy(va)) ** 2).mean()
+        y, style, va = torch.from_numpy(y), torch.from_numpy(style), torch.from_numpy(va)
+        loss = part[0] * config.valence_arousal_weight * ((va_out - va) ** 2).mean()
         if (y >= 0).any():
-            loss = loss + label_loss(logits, y)
+            loss = loss + part[1] * label_loss(logits, y)
         if (style >= 0).any():
-            loss = loss + config.style_weight * style_loss(style_out, style)
+            loss = loss + part[2] * config.style_weight * style_loss(style_out, style)
         opt.zero_grad()
         loss.backward()
+        world.sum_gradients(net.parameters(), 1.0)
         opt.step()
         batch_done()
     net.eval()
-    return _score(measure(model, val)) if val else 0.0
+    return _score(measure(model, val)) if val and world.is_main else 0.0
 
 
 def train_on_one_studio(config: ClassifierConfig, data: dict[str, list[ClipFeatures]],

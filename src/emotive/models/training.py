@@ -500,6 +500,7 @@ def run_epochs(
     checkpoint: Callable[[int, Any], dict[str, Any]],
     rng_state: Callable[[], Any],
     progress: bool,
+    write: bool = True,
 ) -> None:
     """Epochs ``log.start_epoch`` to ``epochs``, updating ``log`` and the files of ``out_dir``.
 
@@ -518,6 +519,8 @@ def run_epochs(
         checkpoint: ``checkpoint(epochs_done, rng_state)``, the dict to save (it reads ``log``).
         rng_state: the trainer's random state now.
         progress: progress bars and one line per epoch on stderr.
+        write: write the files and messages (``False``: a training process other than the
+            first, :mod:`emotive.models.distributed`).
 
     Raises:
         OutputError: a checkpoint or the log cannot be written; the message says which epoch
@@ -551,6 +554,8 @@ def run_epochs(
                                     "seconds": round(time.perf_counter() - began, 3)})
                 improved = outcome.score < log.best_val
                 log.best_val = min(log.best_val, outcome.score)
+                if not write:
+                    continue
                 done = checkpoint(epoch + 1, rng_state())
                 try:
                     if improved:
@@ -567,6 +572,8 @@ def run_epochs(
                     bars.console.print(f"epoch {epoch + 1}/{epochs}: {summary}"
                                        + (f"  {outcome.detail}" if outcome.detail else ""))
     except KeyboardInterrupt:
+        if not write:
+            raise
         if kept != epoch + 1:
             log.best_val = best_before
         if kept is None:

@@ -30,7 +30,9 @@ walking paces the generator needs (:mod:`emotive.models.gait.controls`). Ctrl-C
 Determinism: on CPU, a seed gives the same run (``torch.manual_seed`` for the weights, a NumPy
 generator for batch order and teacher forcing), and resuming from a checkpoint written at the
 end of an epoch gives the same results as not stopping; after Ctrl-C inside an epoch,
-``last.pt`` is that end-of-epoch checkpoint, so resuming is bit-identical too.
+``last.pt`` is that end-of-epoch checkpoint, so resuming is bit-identical too. On ``N``
+processes (:mod:`emotive.models.distributed`) a run is one process's on the same global batches
+up to float rounding in the summed gradients, and the same again for the same ``N``.
 """
 
 from __future__ import annotations
@@ -46,6 +48,7 @@ import numpy as np
 import torch
 
 from emotive.errors import ConfigError
+from emotive.models.distributed import World, current_world
 from emotive.models.gait.affect import gait_affective
 from emotive.models.gait.config import GaitConfig
 from emotive.models.gait.controls import gait_controls
@@ -291,7 +294,8 @@ def batch_indices(n: int, size: int, order: np.ndarray | None = None) -> list[np
 
 
 def evaluate_loss(network: GaitNetwork, data: GaitData, loss: GaitLoss, batch_size: int,
-                  teacher_forcing: float = 0.0, seed: int = 0) -> dict[str, float]:
+                  teacher_forcing: float = 0.0, seed: int = 0, world: World | None = None
+                  ) -> dict[str, float]:
     """Mean of each loss term over every window of ``data`` (weighted by windows).
 
     Args:
@@ -301,24 +305,32 @@ def evaluate_loss(network: GaitNetwork, data: GaitData, loss: GaitLoss, batch_si
         batch_size: windows per batch.
         teacher_forcing: teacher-forcing ratio (0: fed its own predictions after frame 0).
         seed: seed of the teacher-forcing draws for ratios between 0 and 1.
+        world: the training processes, which share the batches out (batch ``k`` to process
+            ``k % size``) and sum them in one process's order (the same result); ``None``: one.
 
     Returns:
         ``{term: value}`` for the active terms and ``total``.
     """
+    world = world or World()
     rng = np.random.default_rng(seed)
-    sums: dict[str, float] = {}
+    rows: list[dict[str, float]] = []
     network.eval()
     with torch.no_grad():
-        for idx in batch_indices(len(data), batch_size):
+        for k, idx in enumerate(batch_indices(len(data), batch_size)):
+            mask = teacher_forcing_mask(data.length, teacher_forcing, rng)
+            if k % world.size != world.rank:
+                rows.append({})
+                continue
             batch = data.batch(idx)
-            outputs = rollout(network, batch, teacher_forcing_mask(data.length,
-                                                                   teacher_forcing, rng),
-                              loss.rig)
+            outputs = rollout(network, batch, mask, loss.rig)
             _, terms = loss(outputs, batch.next_rotations, batch.next_root,
                             batch.next_positions)
-            for k, v in terms.items():
-                sums[k] = sums.get(k, 0.0) + v * len(idx)
-    return {k: v / max(len(data), 1) for k, v in sums.items()}
+            rows.append({name: v * len(idx) for name, v in terms.items()})
+    sums: dict[str, float] = {}
+    for row in world.merge_rows(rows, LOG_TERMS):
+        for name, v in row.items():
+            sums[name] = sums.get(name, 0.0) + v
+    return {name: v / max(len(data), 1) for name, v in sums.items()}
 
 
 #: Config fields a fine-tuning run may change from its starting checkpoint.
@@ -356,6 +368,10 @@ def train_gait(
 ) -> GaitTrainResult:
     """Train the gait network; write ``last.pt``, ``best.pt`` and ``log.csv`` to ``out_dir``.
 
+    Data parallel when run by :func:`emotive.models.distributed.run_parallel` (or torchrun,
+    Ray Train): each process trains on its share of every batch; process 0 alone reads
+    ``last.pt`` (sent to the others) and writes the files and progress.
+
     Args:
         config: the network's config (its labels define the emotion vector).
         settings: the training settings.
@@ -375,7 +391,10 @@ def train_gait(
         KeyboardInterrupt: Ctrl-C; ``last.pt`` keeps the last finished epoch.
     """
     out_dir = Path(out_dir)
-    last_path = training_paths(out_dir, resume)
+    world = current_world()
+    world.check_batch(settings.batch_size, "[train] batch_size")
+    progress = progress and world.is_main
+    last_path = training_paths(out_dir, resume) if world.is_main else out_dir / "last.pt"
     if data is None:
         data = load_gait_data(config, settings.datasets, settings.window, settings.stride,
                               settings.split_seed, settings.max_clips, progress)
@@ -387,17 +406,18 @@ def train_gait(
     rig = GaitRig.from_skeleton(train.skeleton)
     controls = gait_controls(train).to_dict()
     loss_fn = GaitLoss(config, rig)
-    if settings.init_from and not resume:
+    if settings.init_from and not resume and world.is_main:  # sent to the others below
         _initialize_from(network, settings.init_from)
     optimizer = torch.optim.Adam(network.parameters(), lr=settings.learning_rate)
     log = TrainingLog()
     if resume:
-        _, ckpt = load_gait_checkpoint(last_path)
+        ckpt = world.from_main(lambda: load_gait_checkpoint(last_path)[1])
         check_resumable(last_path, ckpt, config.to_dict(), settings.to_dict(), seed)
         network.load_state_dict(ckpt["state"])
         optimizer.load_state_dict(ckpt["optimizer"])
         restore_rng_state(rng, ckpt["rng"])
         log = resumed_log(ckpt)
+    world.broadcast_module(network)
 
     def checkpoint(epoch: int, state: dict[str, Any]) -> dict[str, Any]:
         return {
@@ -417,32 +437,36 @@ def train_gait(
         seen = 0
         for k, idx in enumerate(batch_indices(len(train), settings.batch_size,
                                          epoch_order(train, settings, rng))):
-            batch = train.batch(idx)
-            outputs = rollout(network, batch, teacher_forcing_mask(train.length, ratio, rng),
-                              rig)
-            total, terms = loss_fn(outputs, batch.next_rotations, batch.next_root,
-                                   batch.next_positions)
+            mask = teacher_forcing_mask(train.length, ratio, rng)
+            mine = idx[world.rows(len(idx))]  # all of idx for one process
             optimizer.zero_grad()
-            total.backward()
+            if len(mine):
+                batch = train.batch(mine)
+                total, terms = loss_fn(rollout(network, batch, mask, rig), batch.next_rotations,
+                                       batch.next_root, batch.next_positions)
+                total.backward()
+                for name, value in terms.items():
+                    sums[name] = sums.get(name, 0.0) + value * len(mine)
+            world.sum_gradients(network.parameters(), len(mine) / len(idx))
             optimizer.step()
-            seen += len(idx)
-            for name, value in terms.items():
-                sums[name] = sums.get(name, 0.0) + value * len(idx)
+            seen += len(mine)
             batch_done(_describe({n: v / seen for n, v in sums.items()}))
             if on_batch is not None:
                 on_batch(epoch, k)
+        sums, seen = world.sum_terms(sums, seen, LOG_TERMS)
         train_terms = {n: v / seen for n, v in sums.items()}
         val_terms = (
             # Without gradients, larger batches cost no more memory than training ones.
             evaluate_loss(network, val, loss_fn, 4 * settings.batch_size,
-                          settings.val_teacher_forcing, seed)
+                          settings.val_teacher_forcing, seed, world)
             if val is not None and len(val) else {}
         )
         return loss_outcome(LOG_TERMS, train_terms, val_terms, lr, ratio,
                             _describe(val_terms or train_terms))
 
     run_epochs(log, settings.epochs, math.ceil(len(train) / settings.batch_size), out_dir,
-               CSV_COLUMNS, run_epoch, checkpoint, lambda: rng_state(rng), progress)
+               CSV_COLUMNS, run_epoch, checkpoint, lambda: rng_state(rng), progress,
+               write=world.is_main)
     network.eval()
     return GaitTrainResult(network, log.history, out_dir, log.best_or_nan)
 

@@ -1,0 +1,83 @@
+"""``emotive synth``: the main paper's augmented data set, made on Ray.
+
+"Synthesized Emotive Gaits" (Bhattacharya et al. 2020, section 5.2): gaits on ``--paths``
+novel trajectories with ``--emotions`` novel emotions on each, plus ``--transitions`` pairs of
+those emotions per trajectory, ``--seconds`` each, into ``--out`` as shards, a manifest and a
+card (:func:`emotive.synth.synthesize`). The defaults are the paper's recipe (3,000 walks of
+10 s). A rerun continues a stopped run; the folder is the same for any ``--workers`` and any
+cluster (``--address``).
+
+Heavy modules (torch, Ray) are imported inside the command so that ``emotive --help`` stays
+fast.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from emotive.commands.options import SEED_MAX, out_option
+
+
+def synth(
+    out: Annotated[Path, out_option("Folder of the data set: new, empty, or one this "
+                                    "command made with the same options (it continues).")],
+    paths: Annotated[int, typer.Option("--paths", help="Novel trajectories.", min=1)] = 20,
+    emotions: Annotated[
+        int, typer.Option("--emotions", help="Novel emotions walked on every trajectory.",
+                          min=1)] = 100,
+    transitions: Annotated[
+        int, typer.Option("--transitions", help="Pairs of those emotions (drawn without "
+                          "replacement) walked as a transition on every trajectory; at most "
+                          "half of --emotions.", min=0)] = 50,
+    seconds: Annotated[
+        float, typer.Option("--seconds", help="Length of every walk, seconds (1 to 600).",
+                            min=1.0, max=600.0)] = 10.0,
+    seed: Annotated[
+        int, typer.Option("--seed", help="Random seed: the same seed gives the same data set.",
+                          min=0, max=SEED_MAX)] = 0,
+    model: Annotated[
+        str, typer.Option("--model", "-m", help="Generator: gait (emotive gait network), fcrbm "
+                          "(valence/arousal FCRBM) or lgb (end-effector resampling, needs the "
+                          "data); see `emotive models`.")] = "gait",
+    workers: Annotated[
+        int | None, typer.Option("--workers", help="Shards made at once (default: this "
+                                 "machine's CPUs, or the cluster's).", min=1,
+                                 show_default=False)] = None,
+    address: Annotated[
+        str | None, typer.Option("--address", help="A Ray cluster's HOST:PORT (`ray start "
+                                 "--head --port PORT` on one machine, `ray start --address "
+                                 "HOST:PORT` on the others); default: a local Ray.",
+                                 show_default=False)] = None,
+    formats: Annotated[
+        str, typer.Option("--formats", help="Files: npz (the shards, always written), bvh "
+                          "and glb (one file per walk as well), comma-separated.")] = "npz",
+    rig: Annotated[
+        Path | None, typer.Option("--rig", help="Your character's rig (.bvh, .glb/.gltf or "
+                                  ".fbx): every walk is retargeted onto it.",
+                                  show_default=False)] = None,
+    rig_roles: Annotated[
+        str | None, typer.Option("--rig-roles", help="Role map of --rig: a built-in name or a "
+                                 "JSON file; default: detected.", show_default=False)] = None,
+    shard_size: Annotated[
+        int, typer.Option("--shard-size", help="Walks per shard, made in one batch (part of "
+                          "the recipe: changing it changes the data set).", min=1,
+                          max=2000)] = 100,
+    progress: Annotated[
+        bool, typer.Option("--progress/--no-progress", help="Progress on stderr.",
+                           metavar="")] = True,
+) -> None:
+    """Make the main paper's augmented data set: novel trajectories, emotions, transitions."""
+    from rich.console import Console
+
+    from emotive.synth.build import synthesize
+    from emotive.synth.recipe import Recipe, check_formats
+
+    recipe = Recipe(paths=paths, emotions=emotions, transitions=transitions, seconds=seconds,
+                    seed=seed, model=model, shard_size=shard_size,
+                    formats=check_formats(formats), rig_roles=rig_roles)
+    report = synthesize(out, recipe, rig=rig, workers=workers, address=address,
+                        progress=progress)
+    Console(stderr=True).print(report.summary(), highlight=False, soft_wrap=True)
