@@ -31,6 +31,7 @@ from bench.common import (
 from emotive.core.roles import JointRoles, resolve_roles
 from emotive.eval.feet import foot_skating
 from emotive.io.bvh import read_bvh
+from emotive.models.gait.affect import gait_affective
 from emotive.models.gait.generate import GaitGenerator
 from emotive.models.gait.model import GaitModel
 from emotive.models.gait.network import GaitInputs
@@ -111,12 +112,17 @@ class WindowRerun:
             self.history.append(deque([frame] * WINDOW, maxlen=WINDOW))
         self.net = net
 
+    def _fields(self) -> dict[str, torch.Tensor]:
+        return self.gen.graph.layout.unpack(self.gen._batch.rows)
+
     def _inputs(self, k: int) -> tuple[torch.Tensor, ...]:
-        b = self.gen._batch
-        movement = torch.tensor([np.sin(b.theta[k]), np.cos(b.theta[k]), 0.2,
-                                 b.speed_lowpass[k], b.kappa[k]], dtype=self.gen.dtype)
-        return (b.rotations[k], b.affective[k],
-                torch.as_tensor(b.emotion[k], dtype=self.gen.dtype), movement, b.root[k])
+        f = self._fields()
+        theta = float(f["theta"][k])
+        movement = torch.tensor([np.sin(theta), np.cos(theta), 0.2, float(f["speed_lowpass"][k]),
+                                 float(f["kappa"][k])], dtype=self.gen.dtype)
+        return (f["rotations"][k], f["affective"][k],
+                torch.as_tensor(self.gen._batch.emotion[k], dtype=self.gen.dtype), movement,
+                f["root"][k])
 
     @torch.no_grad()
     def step(self) -> None:
@@ -126,9 +132,10 @@ class WindowRerun:
             window = GaitInputs(*(torch.stack(x)[None] for x in zip(*history, strict=True)))
             out, _ = self.net(window)
             rot = out.rotations[:, -1]
-            _, affective = g._affective_of(rot)
-            b = g._batch
-            b.rotations[k], b.root[k], b.affective[k] = rot[0], out.root[0, -1], affective[0]
+            affective = gait_affective(g.graph.fk(rot), g.graph.roles)
+            f = self._fields()
+            f["rotations"][k], f["root"][k], f["affective"][k] = (rot[0], out.root[0, -1],
+                                                                  affective[0])
             history.append(self._inputs(k))
 
 

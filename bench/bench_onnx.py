@@ -44,8 +44,10 @@ def _inputs(gen: GaitGenerator) -> tuple[GaitInputs, torch.Tensor]:
     """The network inputs and state of a running crowd (movement as zeros: timing only)."""
     b = gen._batch
     n = len(gen)
-    inputs = GaitInputs(b.rotations, b.affective, torch.as_tensor(b.emotion, dtype=gen.dtype),
-                        torch.zeros(n, 5, dtype=gen.dtype), b.root)
+    f = gen.graph.layout.unpack(b.rows)
+    inputs = GaitInputs(f["rotations"], f["affective"],
+                        torch.as_tensor(b.emotion, dtype=gen.dtype),
+                        torch.zeros(n, 5, dtype=gen.dtype), f["root"])
     return inputs, b.state
 
 

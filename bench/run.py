@@ -26,6 +26,7 @@ from bench import (
     bench_onnx,
     bench_readme,
     bench_serve,
+    bench_step,
     bench_study,
     bench_synth,
 )
@@ -66,6 +67,8 @@ def main() -> None:
         ("crowds", lambda: bench_gait.crowd_rows(
             bench_gait.default_model(), agents=300 if args.quick else 1000)),
         ("feet", lambda: bench_gait.skate_rows(bench_gait.default_model(), d1)),
+        ("step", lambda: bench_step.run(agents=300 if args.quick else 1000,
+                                        repeats=3 if args.quick else 5)),
         ("onnx", lambda: bench_onnx.run(agents=(1, 100) if args.quick else (1, 100, 1000),
                                         repeats=3 if args.quick else 5)),
         ("serve", lambda: bench_serve.run(seconds=5.0 if args.quick else 10.0)),

@@ -40,7 +40,7 @@ BIN = Path(sys.executable).parent
 TIMEOUT_S = 600
 #: Commands whose real run takes minutes or needs the data: run as ``--help`` instead.
 EXPENSIVE = ("emotive train", "emotive evaluate", "emotive serve", "emotive reconstruct",
-             "emotive study serve", "emotive study simulate",
+             "emotive study serve", "emotive study simulate", "emotive synth",
              "emotive transfer", "emotive data", "--model lgb", "--weights models/")
 #: Seconds of motion ``emotive generate`` makes here, whatever length the snippet asks.
 QUICK_SECONDS = "2"

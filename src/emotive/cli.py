@@ -36,7 +36,7 @@ from emotive.commands.resample import resample
 from emotive.commands.retarget import retarget
 from emotive.commands.serve import serve
 from emotive.commands.study import app as study_app
-from emotive.commands.synth import synth
+from emotive.commands.synth import app as synth_app
 from emotive.commands.train import app as train_app
 from emotive.commands.transfer import transfer
 from emotive.errors import EmotiveError
@@ -82,7 +82,7 @@ app.add_typer(data_app, name="data")
 app.command("serve")(serve)
 app.add_typer(export_app, name="export")
 app.add_typer(study_app, name="study")
-app.command("synth")(synth)
+app.add_typer(synth_app, name="synth")
 app.command("resample", hidden=True)(resample)
 app.add_typer(fcrbm_app, name="fcrbm", hidden=True)
 

@@ -39,3 +39,20 @@ def test_bad_outputs_and_weights_fail_in_one_line_and_write_nothing(tmp_path):
     before = sorted(tmp_path.iterdir())
     assert_failed_cleanly(_invoke("--out", tmp_path / "gait.onnx", "--weights", bad),
                           ConfigError, ["bad.pt"], tmp_path, before)
+
+
+def test_export_the_whole_agent_step_prints_its_inputs_and_outputs(tmp_path):
+    out = tmp_path / "agent.onnx"
+    result = _invoke("--step", "agent", "--out", out)
+    assert result.exit_code == 0, result.output
+    lines = result.output.splitlines()
+    assert lines[0].startswith(f"wrote {out} (agent step,")
+    assert "input  path            (B, 15, 2)" in result.output
+    assert "output world           (B, 27, 3)" in result.output
+    assert sorted(tmp_path.iterdir()) == [out]
+
+
+def test_an_unknown_step_fails_in_one_line_and_writes_nothing(tmp_path):
+    before = sorted(tmp_path.iterdir())
+    assert_failed_cleanly(_invoke("--step", "body", "--out", tmp_path / "a.onnx"), ConfigError,
+                          ["--step 'body'", "agent", "network"], tmp_path, before)

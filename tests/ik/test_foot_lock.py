@@ -28,15 +28,16 @@ def _stream(model, lock: bool, steps: int, emotion: str = "happy", agents: int =
     for _ in range(steps):
         frame = gen.step()
         frames.append(frame)
-        planted.append(gen._batch.feet_planted.copy())
+        planted.append(gen.agent_field("lock_planted") > 0.5)
     return frames, np.stack(planted, 1), gen
 
 
 def test_planted_heels_stand_still_and_legs_keep_their_lengths(model):
     frames, planted, gen = _stream(model, True, 150)
-    legs = gen._legs
+    legs = gen.graph.legs
+    chain = np.array(legs.chain)
     world = np.stack([f.world for f in frames], 1)  # (B, T, P, 3)
-    heel = world[:, :, legs.chain[:, 3]]  # (B, T, 2, 3)
+    heel = world[:, :, chain[:, 3]]  # (B, T, 2, 3)
     held = planted[:, 1:, :, 0] & planted[:, :-1, :, 0]
     move = np.linalg.norm(np.diff(heel[..., [0, 2]], axis=1), axis=-1)
     assert held.sum() > 50
@@ -50,7 +51,7 @@ def test_planted_heels_stand_still_and_legs_keep_their_lengths(model):
         _, fk = forward_kinematics_np(f.rotations, f.positions, sk.parents)
         np.testing.assert_allclose(fk[:, body], f.world[:, body], atol=1e-5)
     # Thigh and shin lengths are the rig's in every frame.
-    hip, knee, ankle = legs.chain[0, 1:]
+    hip, knee, ankle = chain[0, 1:]
     for a, b in ((hip, knee), (knee, ankle)):
         rest = np.linalg.norm(world[0, 0, b] - world[0, 0, a])
         np.testing.assert_allclose(np.linalg.norm(world[:, :, b] - world[:, :, a], axis=-1),
@@ -60,7 +61,7 @@ def test_planted_heels_stand_still_and_legs_keep_their_lengths(model):
 def test_the_lock_changes_swinging_legs_only_by_a_fading_correction(model):
     locked, planted, gen = _stream(model, True, 120)
     raw, _, _ = _stream(model, False, 120)
-    ankles = gen._legs.chain[:, 3]
+    ankles = np.array(gen.graph.legs.chain)[:, 3]
     gap = np.stack([np.linalg.norm(a.world[:, ankles] - b.world[:, ankles], axis=-1)
                     for a, b in zip(locked, raw, strict=True)], 1)  # (B, T, 2)
     swing = ~planted.any(-1)
@@ -100,7 +101,7 @@ def test_released_feet_catch_up_without_a_jolt(model, emotion):
     # A release that lets a 20-30 cm correction go at once (a geometric fade) jolts the
     # ankle: its 99th-percentile acceleration read 100-150 m/s^2 (real walks: 17-28).
     frames, _, gen = _stream(model, True, 240, emotion=emotion, agents=3)
-    ankles = gen._legs.chain[:, 3]
+    ankles = np.array(gen.graph.legs.chain)[:, 3]
     a = np.stack([f.world[:, ankles] for f in frames], 1)
     acc = np.linalg.norm(np.diff(a, 2, axis=1), axis=-1) * model.fps**2
     assert np.percentile(acc, 99) < 90.0

@@ -91,6 +91,8 @@ def test_the_wheel_holds_every_file_of_the_package(wheel: Path):
     for asset in ("emotive/assets/gait/emotive-gait.pt", "emotive/assets/gait/MODEL_CARD.md",
                   "emotive/serve/static/index.html",
                   "emotive/serve/static/vendor/three/three.module.js",
+                  "emotive/web/static/index.html",
+                  "emotive/web/static/vendor/onnxruntime-web/ort-wasm-simd-threaded.wasm",
                   "emotive/study/static/index.html", "emotive/study/migrations/env.py",
                   "emotive/study/migrations/versions/0001_initial.py"):
         assert asset in names
@@ -130,6 +132,15 @@ def test_export_onnx_writes_a_model(venv: Path, tmp_path: Path):
 
     _run(venv, tmp_path, "emotive", "export", "onnx", "--out", "gait.onnx")
     onnx.checker.check_model(str(tmp_path / "gait.onnx"))
+
+
+def test_export_web_writes_the_page_from_the_wheel(venv: Path, tmp_path: Path):
+    _run(venv, tmp_path, "emotive", "export", "web", "--out", "site")
+    site = tmp_path / "site"
+    for name in ("index.html", "app.js", "figures.js", "agent.onnx", "agent.json",
+                 "mannequin.glb", "vendor/three/three.module.js",
+                 "vendor/onnxruntime-web/ort-wasm-simd-threaded.wasm"):
+        assert (site / name).is_file(), name
 
 
 def _lines(stream, out: queue.Queue) -> None:

@@ -1,8 +1,11 @@
-"""``emotive export onnx``: the gait network's one-frame step as an ONNX file for engines.
+"""``emotive export onnx|web``: gait agents' per-frame step for engines and the browser.
 
-The file runs on ONNX Runtime (``emotive serve --backend onnx``, onnxruntime-web) and in
-engines (Unity Sentis, Unreal NNE, Godot through an ONNX Runtime binding); ``docs/runtime.md``
-says what a host computes around it each frame.
+``--step agent`` writes the whole step (network, controls, path following, kinematics,
+affective features and the foot lock in one graph); ``--step network`` the network alone. The
+files run on ONNX Runtime (``emotive serve --backend onnx``, onnxruntime-web) and in engines
+(Unity Sentis, Unreal NNE, Godot through an ONNX Runtime binding); ``docs/runtime.md`` is the
+contract of each. ``emotive export web`` writes a static folder that runs the whole step in
+the browser on onnxruntime-web (:mod:`emotive.web.export`).
 
 Heavy modules are imported inside the commands so that ``emotive --help`` stays fast.
 """
@@ -14,7 +17,7 @@ from typing import Annotated
 
 import typer
 
-from emotive.commands.options import out_option
+from emotive.commands.options import flag, out_option
 
 app = typer.Typer(help="Export models for engines and other runtimes.", no_args_is_help=True,
                   add_completion=False)
@@ -31,28 +34,77 @@ def _shape(dims: tuple) -> str:
 
 @app.command("onnx")
 def export_onnx_command(
-    out: Annotated[Path, out_option("Output .onnx file: the gait network's one-frame step "
-                                    "with its recurrent state as input and output.")],
+    out: Annotated[Path, out_option("Output .onnx file: one frame of gait agents per call, "
+                                    "the state as input and output.")],
+    step: Annotated[
+        str,
+        typer.Option("--step", help="What one call computes: 'agent' (the whole step: "
+                     "network, controls, path following, kinematics, foot lock) or "
+                     "'network' (the network alone; the host computes the rest, "
+                     "docs/runtime.md)."),
+    ] = "network",
     weights: Annotated[
         Path | None,
         typer.Option("--weights", help="Gait checkpoint to export instead of the built-in "
                      "one (a last.pt or best.pt of `emotive train gait`).", show_default=False),
     ] = None,
 ) -> None:
-    """Export the gait network's per-frame step to ONNX (dynamic batch of agents)."""
+    """Export gait agents' per-frame step to ONNX (dynamic batch of agents)."""
+    from emotive.errors import ConfigError
     from emotive.io.outputs import check_output
     from emotive.models.gait.model import load_gait_model
     from emotive.models.gait.onnx_export import OPSET, export_onnx, graph_signature, require
+    from emotive.models.gait.step_export import export_agent_step
 
+    if step not in ("agent", "network"):
+        raise ConfigError(f"--step {step!r}: choose 'agent' (the whole step) or 'network' "
+                          f"(the network alone)")
     check_output(out, (".onnx",), "--out")
     require("onnx")
     model = load_gait_model(weights)
-    export_onnx(model, out)
+    if step == "agent":
+        export_agent_step(model, out)
+    else:
+        export_onnx(model, out)
     inputs, outputs = graph_signature(out)
     size = out.stat().st_size
-    typer.echo(f"wrote {out} ({size / 1e6:.2f} MB, opset {OPSET}, {model.fps:g} fps, "
+    typer.echo(f"wrote {out} ({step} step, {size / 1e6:.2f} MB, opset {OPSET}, {model.fps:g} fps, "
                f"{len(model.labels)} labels, {model.network.config.num_joints} joints, "
                f"from {model.source})")
     for kind, values in (("input", inputs), ("output", outputs)):
         for name, dims in values:
             typer.echo(f"  {kind:6} {name:15} {_shape(dims)}")
+
+
+@app.command("web")
+def export_web_command(
+    out: Annotated[Path, out_option("Output folder: a static page that runs gait agents in "
+                                    "the browser (serve it with `python -m http.server`).")],
+    weights: Annotated[
+        Path | None,
+        typer.Option("--weights", help="Gait checkpoint to export instead of the built-in "
+                     "one (a last.pt or best.pt of `emotive train gait`).", show_default=False),
+    ] = None,
+    force: Annotated[bool, flag("force", "Replace --out when it holds a previous export (a "
+                                "folder with other files is never replaced).")] = False,
+) -> None:
+    """Export a static folder that runs gait agents in the browser, without Python.
+
+    The page places agents, draws their paths, sets their emotions and offers WebXR AR/VR
+    like the served app; onnxruntime-web runs the whole agent step in the page.
+    """
+    from emotive.models.gait.model import load_gait_model
+    from emotive.models.gait.onnx_export import require
+    from emotive.web.export import check_web_folder, export_web
+
+    folder = out.expanduser().absolute()
+    check_web_folder(folder, force)
+    require("onnx")
+    model = load_gait_model(weights)
+    done = export_web(model, folder, force=force)
+    typer.echo(f"wrote {done.folder} ({done.files} files, {done.total_bytes / 1e6:.1f} MB: "
+               f"agent.onnx {done.graph_bytes / 1e6:.2f} MB, onnxruntime-web "
+               f"{done.runtime_bytes / 1e6:.1f} MB; {model.fps:g} fps, "
+               f"{len(model.labels)} labels, from {model.source})")
+    typer.echo(f"  serve it: python -m http.server --bind 127.0.0.1 --directory {done.folder}")
+    typer.echo("  then open http://127.0.0.1:8000/ (add ?demo=1 for four walking agents)")

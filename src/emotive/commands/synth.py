@@ -1,4 +1,4 @@
-"""``emotive synth``: the main paper's augmented data set, made on Ray.
+"""``emotive synth``: the main paper's augmented data set, made on Ray, and what it is worth.
 
 "Synthesized Emotive Gaits" (Bhattacharya et al. 2020, section 5.2): gaits on ``--paths``
 novel trajectories with ``--emotions`` novel emotions on each, plus ``--transitions`` pairs of
@@ -7,7 +7,11 @@ card (:func:`emotive.synth.synthesize`). The defaults are the paper's recipe (3,
 10 s). A rerun continues a stopped run; the folder is the same for any ``--workers`` and any
 cluster (``--address``).
 
-Heavy modules (torch, Ray) are imported inside the command so that ``emotive --help`` stays
+``emotive synth classifier-study`` (:mod:`emotive.commands.synth_study`) trains the
+perceived-emotion classifier on real clips and on real clips plus such a folder, and compares
+them on held-out real walks.
+
+Heavy modules (torch, Ray) are imported inside the commands so that ``emotive --help`` stays
 fast.
 """
 
@@ -18,12 +22,21 @@ from typing import Annotated
 
 import typer
 
-from emotive.commands.options import SEED_MAX, out_option
+from emotive.commands.options import SEED_MAX
+from emotive.commands.synth_study import classifier_study
+
+app = typer.Typer(invoke_without_command=True, add_completion=False)
+app.command("classifier-study")(classifier_study)
 
 
+@app.callback()
 def synth(
-    out: Annotated[Path, out_option("Folder of the data set: new, empty, or one this "
-                                    "command made with the same options (it continues).")],
+    ctx: typer.Context,
+    out: Annotated[
+        Path | None, typer.Option("--out", "-o", help="Folder of the data set: new, empty, or "
+                                  "one this command made with the same options (it "
+                                  "continues). Required to make a data set.",
+                                  show_default=False)] = None,
     paths: Annotated[int, typer.Option("--paths", help="Novel trajectories.", min=1)] = 20,
     emotions: Annotated[
         int, typer.Option("--emotions", help="Novel emotions walked on every trajectory.",
@@ -71,6 +84,15 @@ def synth(
 ) -> None:
     """Make the main paper's augmented data set: novel trajectories, emotions, transitions."""
     from rich.console import Console
+    from typer._click.exceptions import UsageError
+
+    if ctx.invoked_subcommand is not None:
+        if out is not None:
+            raise UsageError(f"--out belongs to `emotive synth` itself; give `emotive synth "
+                             f"{ctx.invoked_subcommand}` its own options after its name", ctx)
+        return
+    if out is None:
+        raise UsageError("Missing option '--out' / '-o'.", ctx)
 
     from emotive.synth.build import synthesize
     from emotive.synth.recipe import Recipe, check_formats

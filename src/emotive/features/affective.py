@@ -158,7 +158,7 @@ def affective_features(
     p = positions
 
     def pts(slot: list[int]) -> torch.Tensor:
-        return p[..., slot, :]
+        return p.index_select(-2, torch.as_tensor(slot, device=p.device))
 
     groups = []
     cols_a, (a, b, c) = _columns("angle")

@@ -23,7 +23,9 @@ over the whole contact, which needs the future. A live stream has only the frame
    foot's world orientation (turned by the yaw correction); everything below the ankle moves
    with it.
 
-Everything is batched over agents and legs with plain NumPy (:mod:`emotive.transforms.fast_np`).
+Everything is batched over agents and legs. The computation is the torch kernels of
+:mod:`emotive.ik.foot_lock_kernel` (which the exported gait step traces); the functions here
+are their NumPy face, in float64.
 
 Legend: ``B`` agents, ``J`` joints, ``E`` end sites, ``P = J + E`` points.
 """
@@ -34,10 +36,11 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
+import torch
 
 from emotive.core.roles import JointRoles
 from emotive.core.skeleton import Skeleton
-from emotive.transforms.fast_np import cross, qapply, qmul, qnormalize
+from emotive.ik.foot_lock_kernel import LegIndex, LockTensors, lock_step, two_bone
 
 
 @dataclass(frozen=True)
@@ -160,157 +163,6 @@ def initial_lock_state(agents: int) -> LockState:
                      np.zeros((agents, 2)), np.zeros((agents, 2)))
 
 
-def _fade(released: np.ndarray, frames: int) -> np.ndarray:
-    """``(B, 2)`` factor taking a correction from ``released - 1`` to ``released`` frames.
-
-    The correction left ``k`` frames after a contact ended is ``c0 * s(k)``, ``s`` the
-    smoothstep from 1 to 0 over ``frames`` frames, so one frame scales it by
-    ``s(k) / s(k - 1)``.
-    """
-
-    def left(k: np.ndarray) -> np.ndarray:
-        x = np.clip(k / max(frames, 1), 0.0, 1.0)
-        return 1.0 - x * x * (3.0 - 2.0 * x)
-
-    before = left(released - 1.0)
-    return np.where(before > 0, left(released) / np.maximum(before, 1e-12), 0.0)
-
-
-def _conj(q: np.ndarray) -> np.ndarray:
-    return q * np.array([1.0, -1.0, -1.0, -1.0])
-
-
-def _between(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """``(..., 4)`` shortest rotation taking direction ``u`` to direction ``v``."""
-    u = u / np.maximum(np.linalg.norm(u, axis=-1, keepdims=True), 1e-12)
-    v = v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-12)
-    w = 1.0 + (u * v).sum(-1, keepdims=True)
-    q = np.concatenate((w, cross(u, v)), -1)
-    return qnormalize(np.where(w > 1e-9, q, np.array([1.0, 0.0, 0.0, 0.0])))
-
-
-def _world_rotations(rotations: np.ndarray, parents: np.ndarray, upto: np.ndarray
-                     ) -> np.ndarray:
-    """``(B, J, 4)`` world rotations of the joints on the paths to ``upto`` (others identity)."""
-    need = np.zeros(len(parents), dtype=bool)
-    for j in upto.ravel():
-        while j >= 0 and not need[j]:
-            need[j] = True
-            j = parents[j]
-    world = np.zeros_like(rotations)
-    world[..., 0] = 1.0
-    for j in np.flatnonzero(need):
-        p = parents[j]
-        world[:, j] = rotations[:, j] if p < 0 else qmul(world[:, p], rotations[:, j])
-    return world
-
-
-def _contacts(rig: LegRig, state: LockState, feet: np.ndarray, body: np.ndarray, fps: float,
-              settings: LockSettings) -> np.ndarray:
-    """``(B, 2, 2)`` planted heels and toes after this frame's hysteresis."""
-    scale = rig.leg_length
-    height = feet[..., 1] - rig.ground
-    speed = np.linalg.norm(feet - state.previous, axis=-1) * fps
-    speed = np.where(np.isfinite(speed), speed, np.inf)
-    body = body[:, None, None]
-    on = (height < settings.height_on * scale) & (
-        speed < settings.speed_on * scale + settings.body_on * body)
-    off = (height > settings.height_off * scale) | (
-        speed > settings.speed_off * scale + settings.body_off * body)
-    return on | (state.planted & ~off)
-
-
-def _corrections(state: LockState, feet: np.ndarray, planted: np.ndarray, fade: np.ndarray
-                 ) -> tuple[np.ndarray, np.ndarray]:
-    """This frame's ``(B, 2, 2)`` corrections and anchors (see the module docstring)."""
-    xz = feet[..., [0, 2]]
-    heel, toe = planted[..., 0], planted[..., 1]
-    was_heel = state.planted[..., 0]
-    was_held = state.planted.any(-1)
-    held_heel = heel & was_heel
-    held_toe = toe & ~heel & was_held & ~was_heel
-    # A new anchor is where the corrected planted point stands now.
-    ref = np.where(heel[..., None], xz[..., 0, :], xz[..., 1, :])
-    fresh = ref + state.correction
-    anchor = np.where((held_heel | held_toe)[..., None], state.anchor, fresh)
-    correction = np.where((heel | toe)[..., None], anchor - ref, fade[..., None] * state.correction)
-    return correction, anchor
-
-
-def _yaws(feet: np.ndarray) -> np.ndarray:
-    """``(B, 2)`` world yaw of each foot's heel -> toe direction (0 faces +Z)."""
-    d = feet[..., 1, :] - feet[..., 0, :]
-    return np.arctan2(d[..., 0], d[..., 2])
-
-
-def _yaw_corrections(state: LockState, yaw: np.ndarray, contact: np.ndarray, fade: np.ndarray
-                     ) -> tuple[np.ndarray, np.ndarray]:
-    """This frame's ``(B, 2)`` yaw corrections and anchors.
-
-    A foot in contact keeps the yaw it had (corrected) when the contact began; in swing the
-    correction fades out.
-    """
-    fresh = yaw + state.yaw_correction
-    anchor = np.where(contact & state.planted.any(-1), state.yaw_anchor, fresh)
-    gap = np.angle(np.exp(1j * (anchor - yaw)))
-    return np.where(contact, gap, fade * state.yaw_correction), anchor
-
-
-def _reachable(hip: np.ndarray, target: np.ndarray, reach: np.ndarray) -> np.ndarray:
-    """``(..., 3)`` targets beyond a leg's reach raised until the leg reaches them.
-
-    The horizontal position is what the lock holds, so an ankle the straight leg cannot
-    reach (at heel strike and toe-off) is lifted rather than left sliding.
-    """
-    flat = np.linalg.norm((target - hip)[..., [0, 2]], axis=-1)
-    lowest = hip[..., 1] - np.sqrt(np.maximum(reach**2 - flat**2, 0.0))
-    out = target.copy()
-    out[..., 1] = np.maximum(target[..., 1], lowest)
-    return out
-
-
-def _two_bone(rig: LegRig, rotations: np.ndarray, points: np.ndarray, shift: np.ndarray,
-              yaw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The rotations and points with each ankle moved and each foot turned, hips fixed.
-
-    Each ankle moves by ``shift`` ``(B, 2, 3)`` and each foot turns by ``yaw`` ``(B, 2)``
-    about the vertical through its ankle. Both legs are solved at once: every array below
-    carries a leg axis after the agents' (``(B, 2, ...)``).
-    """
-    parents_world = _world_rotations(rotations, rig.parents, rig.chain[:, 3])
-    rotations, points = rotations.copy(), points.copy()
-    up, hip, knee, ankle = rig.chain.T
-    h, k, a = points[:, hip], points[:, knee], points[:, ankle]
-    la = np.linalg.norm(k - h, axis=-1)
-    lb = np.linalg.norm(a - k, axis=-1)
-    target = _reachable(h, a + shift, la + lb - 1e-6)
-    reach = target - h
-    d = np.clip(np.linalg.norm(reach, axis=-1), np.abs(la - lb) + 1e-6, la + lb - 1e-6)
-    u = reach / np.maximum(np.linalg.norm(reach, axis=-1, keepdims=True), 1e-12)
-    side = (k - h) - ((k - h) * u).sum(-1, keepdims=True) * u
-    v = side / np.maximum(np.linalg.norm(side, axis=-1, keepdims=True), 1e-12)
-    along = (la**2 - lb**2 + d**2) / (2 * d)
-    k_new = h + along[..., None] * u + np.sqrt(np.maximum(la**2 - along**2, 0))[..., None] * v
-    a_new = h + d[..., None] * u
-    g_up, g_hip = parents_world[:, up], parents_world[:, hip]
-    g_knee, g_ankle = parents_world[:, knee], parents_world[:, ankle]
-    r1 = _between(k - h, k_new - h)
-    g_hip2 = qmul(r1, g_hip)
-    r2 = _between(qapply(r1, a - k), a_new - k_new)
-    g_knee2 = qmul(r2, qmul(r1, g_knee))
-    half = 0.5 * yaw
-    turn = np.stack((np.cos(half), np.zeros_like(half), np.sin(half), np.zeros_like(half)), -1)
-    rotations[:, hip] = qnormalize(qmul(_conj(g_up), g_hip2))
-    rotations[:, knee] = qnormalize(qmul(_conj(g_hip2), g_knee2))
-    rotations[:, ankle] = qnormalize(qmul(_conj(g_knee2), qmul(turn, g_ankle)))
-    points[:, knee] = k_new
-    for leg in range(2):
-        below = rig.below[leg]
-        moved = points[:, below] - a[:, leg, None]
-        points[:, below] = a_new[:, leg, None] + qapply(turn[:, leg, None], moved)
-    return rotations, points
-
-
 def move_ankles(rig: LegRig, rotations: np.ndarray, points: np.ndarray, shift: np.ndarray,
                 yaw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Each ankle moved and each foot turned by the analytic two-bone solve of step 3.
@@ -328,7 +180,8 @@ def move_ankles(rig: LegRig, rotations: np.ndarray, points: np.ndarray, shift: n
     Returns:
         The rotations ``(B, J, 4)`` and points ``(B, P, 3)``; the hips stay where they are.
     """
-    return _two_bone(rig, rotations, points, shift, yaw)
+    rot, pts = two_bone(leg_index(rig), *_tensors(rotations, points, shift, yaw))
+    return rot.numpy(), pts.numpy()
 
 
 def lock_feet(rig: LegRig, state: LockState, rotations: np.ndarray, points: np.ndarray,
@@ -350,22 +203,26 @@ def lock_feet(rig: LegRig, state: LockState, rotations: np.ndarray, points: np.n
         The locked rotations ``(B, J, 4)`` and points ``(B, P, 3)``, and the new state.
     """
     settings = settings or LockSettings()
-    feet = np.stack((points[:, rig.chain[:, 3]], points[:, rig.toe]), 2)
-    planted = _contacts(rig, state, feet, np.asarray(body_speed, dtype=np.float64), fps,
-                        settings)
-    released = np.where(planted.any(-1), 0.0, state.released + 1.0)
-    fade = _fade(released, settings.release_frames)
-    correction, anchor = _corrections(state, feet, planted, fade)
-    dragged = np.linalg.norm(correction, axis=-1) > settings.max_correction * rig.leg_length
-    if dragged.any():
-        planted = planted & ~dragged[..., None]
-        released = np.where(planted.any(-1), 0.0, state.released + 1.0)
-        fade = _fade(released, settings.release_frames)
-        correction, anchor = _corrections(state, feet, planted, fade)
-    yaw_correction, yaw_anchor = _yaw_corrections(state, _yaws(feet), planted.any(-1), fade)
-    shift = np.zeros((len(points), 2, 3))
-    shift[..., 0], shift[..., 2] = correction[..., 0], correction[..., 1]
-    if np.abs(shift).max(initial=0.0) > 0 or np.abs(yaw_correction).max(initial=0.0) > 0:
-        rotations, points = _two_bone(rig, rotations, points, shift, yaw_correction)
-    return rotations, points, LockState(feet, planted, anchor, correction, yaw_anchor,
-                                        yaw_correction, released)
+    rotations = np.asarray(rotations, dtype=np.float64)
+    points = np.asarray(points, dtype=np.float64)
+    legs = leg_index(rig)
+    previous = LockTensors(*(torch.from_numpy(np.asarray(x)) for x in state))
+    body = torch.from_numpy(np.asarray(body_speed, dtype=np.float64).reshape(-1))
+    rot, pts = torch.from_numpy(rotations), torch.from_numpy(points)
+    locked, moved, new = lock_step(legs, previous, rot, pts, body, fps, settings)
+    state = LockState(*(x.numpy() for x in new))
+    if not bool((new.correction != 0).any() | (new.yaw_correction != 0).any()):
+        return rotations, points, state  # nothing to move: the frame exactly as it came
+    return locked.numpy(), moved.numpy(), state
+
+
+def leg_index(rig: LegRig) -> LegIndex:
+    """The legs of ``rig`` as the constants of :mod:`emotive.ik.foot_lock_kernel`."""
+    return LegIndex(tuple(tuple(int(j) for j in c) for c in rig.chain),
+                    tuple(int(t) for t in rig.toe), torch.from_numpy(np.asarray(rig.below)),
+                    torch.from_numpy(np.asarray(rig.ground, dtype=np.float64)),
+                    float(rig.leg_length), tuple(int(p) for p in rig.parents))
+
+
+def _tensors(*arrays: np.ndarray) -> tuple[torch.Tensor, ...]:
+    return tuple(torch.from_numpy(np.asarray(a, dtype=np.float64)) for a in arrays)

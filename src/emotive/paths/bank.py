@@ -30,13 +30,34 @@ _GAP = 1.0
 CURVATURE_WINDOW = 0.2
 
 
+#: Arc spacing (metres) of the uniform grid :meth:`PathBank.ahead` interpolates.
+GRID_SPACING = 0.01
+
+
 @dataclass
 class _Slot:
     path: GroundPath
     first: int
     count: int
     base: float
+    grid: np.ndarray
+    spacing: float
+    ends: np.ndarray
     users: int = 1
+
+
+def _grid(path: GroundPath) -> tuple[np.ndarray, float, np.ndarray]:
+    """The path on a uniform arc grid of about :data:`GRID_SPACING` (a whole number of steps).
+
+    Returns:
+        ``(N + 1, 2)`` grid points, the grid spacing (metres) and ``(2, 2)`` unit tangents at
+        the start and the end.
+    """
+    steps = max(round(path.length / GRID_SPACING), 1)
+    spacing = path.length / steps
+    points = path.position(np.arange(steps + 1) * spacing)
+    yaw = path.heading(np.array([0.0, path.length]))
+    return points, spacing, np.stack((np.sin(yaw), np.cos(yaw)), -1)
 
 
 class PathBank:
@@ -85,7 +106,7 @@ class PathBank:
         self._pts[rows] = path.points
         slot = self._next
         self._next += 1
-        self._slots[slot] = _Slot(path, self._used, n, self._top)
+        self._slots[slot] = _Slot(path, self._used, n, self._top, *_grid(path))
         self._by_path[id(path)] = slot
         self._used += n
         self._top += path.length + _GAP
@@ -141,12 +162,24 @@ class PathBank:
         self._base = np.zeros(size)
         self._first = np.zeros(size, dtype=np.int64)
         self._last = np.ones(size, dtype=np.int64)
+        self._grid_first = np.zeros(size, dtype=np.int64)
+        self._grid_steps = np.ones(size)
+        self._grid_spacing = np.ones(size)
+        self._ends = np.zeros((size, 2, 2))
+        grids, at = [np.zeros((2, 2))], 2
         for slot, info in self._slots.items():
+            grids.append(info.grid)
+            self._grid_first[slot] = at
+            self._grid_steps[slot] = len(info.grid) - 1
+            self._grid_spacing[slot] = info.spacing
+            self._ends[slot] = info.ends
+            at += len(info.grid)
             self._length[slot] = info.path.length
             self._closed[slot] = info.path.closed
             self._base[slot] = info.base
             self._first[slot] = info.first
             self._last[slot] = info.first + info.count - 1
+        self._grid_table = np.concatenate(grids)
         self._table_dirty = False
 
     def length(self, slots: np.ndarray) -> np.ndarray:
@@ -207,3 +240,34 @@ class PathBank:
         span = np.where(closed, 2 * h, self._wrap(slots, s + h) - self._wrap(slots, s - h))
         turn = np.angle(np.exp(1j * (b - a)))
         return np.where(span > 1e-9, turn / np.maximum(span, 1e-9), 0.0)
+
+    def ahead(self, slots: np.ndarray, arc: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+        """``(B, K, 2)`` points of each slot's path at ``arc + offsets``.
+
+        The points are interpolated on each path's uniform grid of about
+        :data:`GRID_SPACING` metres (made once when the path is added), so a query is
+        arithmetic and one gather, with no search. An open path is extended straight along
+        its end tangents, so the points always continue the path (the path samples of the
+        exported gait step, ``docs/runtime.md``); a loop wraps.
+
+        Args:
+            slots: ``(B,)`` slots.
+            arc: ``(B,)`` arc lengths, metres.
+            offsets: ``(K,)`` arc offsets, metres.
+        """
+        self._tables()
+        slots = np.asarray(slots, dtype=np.int64)
+        s = np.asarray(arc, dtype=np.float64)[:, None] + np.asarray(offsets)[None, :]  # (B, K)
+        length, closed = self._length[slots][:, None], self._closed[slots][:, None]
+        inside = np.where(closed, np.mod(s, length), np.clip(s, 0.0, length))
+        steps = self._grid_steps[slots][:, None]
+        u = inside / self._grid_spacing[slots][:, None]
+        i = np.minimum(np.floor(u), steps - 1)
+        t = (u - i)[..., None]
+        row = self._grid_first[slots][:, None] + i.astype(np.int64)
+        grid = self._grid_table
+        points = grid[row] * (1.0 - t) + grid[row + 1] * t
+        ends = self._ends[slots]
+        past = np.where(closed, 0.0, s - inside)[..., None]
+        start_dir, end_dir = ends[:, None, 0], ends[:, None, 1]
+        return points + np.where(past > 0, past * end_dir, past * start_dir)

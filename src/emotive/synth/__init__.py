@@ -20,6 +20,10 @@ Modules, by concept:
   ``README.md``.
 * :mod:`~emotive.synth.build` -- :func:`synthesize`, the steps in order.
 * :mod:`~emotive.synth.dataset` -- :class:`SyntheticGaits`.
+* :mod:`~emotive.synth.classifier_data`, :mod:`~emotive.synth.classifier_mix`,
+  :mod:`~emotive.synth.classifier_stats`, :mod:`~emotive.synth.classifier_study` -- what the
+  data set does for emotion recognition: the perceived-emotion classifier trained on real
+  clips alone and with synthetic walks, compared on held-out real walks.
 
 The names below are imported from their modules on first access: importing the package loads
 neither torch nor Ray.

@@ -16,7 +16,7 @@ from emotive.transforms.numpy_bridge import numpy_kernel
 from emotive.transforms.rotations import (
     quaternion_apply,
     quaternion_multiply,
-    quaternion_to_matrix,
+    quaternion_rotate,
 )
 
 
@@ -123,7 +123,7 @@ class PoseFK:
     :func:`forward_kinematics` takes any translations and recomputes the tree's levels on
     every call; streaming animation calls FK once per frame on a fixed rig, where that
     overhead dominates. Here levels, parents and offsets are prepared once and the rotations
-    are composed as matrices (one conversion, then one matrix product per tree level).
+    are composed one tree level at a time (NumPy: as matrices; torch: as quaternions).
 
     Args:
         parents: ``J`` parent indices in topological order.
@@ -157,6 +157,15 @@ class PoseFK:
             torch.as_tensor(self._numpy.end_parents),
             torch.as_tensor(self._numpy.end_offsets, dtype=dtype),
         )
+        # The torch path composes level by level into tensors that only grow (levels in
+        # order, then one permutation): no in-place writes, so it traces into ONNX.
+        order = [int(j) for level in levels for j in level]
+        at = {j: k for k, j in enumerate(order)}
+        self._grown = [None if p[0] < 0 else torch.as_tensor([at[int(j)] for j in p])
+                       for p in self._numpy.parents]
+        self._grown_ends = torch.as_tensor([at[int(j)] for j in self._numpy.end_parents],
+                                           dtype=torch.long)
+        self._grown_order = torch.as_tensor(np.argsort(order))
 
     def __call__(self, rotations: torch.Tensor | np.ndarray) -> torch.Tensor | np.ndarray:
         """``(B, J + E, 3)`` world positions of ``(B, J, 4)`` local unit quaternions.
@@ -165,16 +174,12 @@ class PoseFK:
         """
         # Joints first, poses second: each tree level then reads and writes whole contiguous
         # blocks of (B, 3, 3) matrices (1,000 poses: 30 % faster than poses first).
-        if isinstance(rotations, np.ndarray):
-            tree, cat = self._numpy, np.concatenate
-            local = qmatrix(np.swapaxes(rotations, 0, 1))
-            world_r = np.empty((self.num_joints, rotations.shape[0], 3, 3))
-            world_x = np.empty((self.num_joints, rotations.shape[0], 3, 1))
-        else:
-            tree, cat = self._torch, torch.cat
-            local = quaternion_to_matrix(rotations.transpose(0, 1))
-            world_r = local.new_empty(self.num_joints, rotations.shape[0], 3, 3)
-            world_x = local.new_empty(self.num_joints, rotations.shape[0], 3, 1)
+        if not isinstance(rotations, np.ndarray):
+            return self._compose(rotations)
+        tree, cat = self._numpy, np.concatenate
+        local = qmatrix(np.swapaxes(rotations, 0, 1))
+        world_r = np.empty((self.num_joints, rotations.shape[0], 3, 3))
+        world_x = np.empty((self.num_joints, rotations.shape[0], 3, 1))
         for level, par, offsets in zip(tree.levels, tree.parents, tree.offsets, strict=True):
             if par[0] < 0:
                 world_r[level] = local[level]
@@ -187,3 +192,28 @@ class PoseFK:
             ends = world_r[tree.end_parents] @ tree.end_offsets + world_x[tree.end_parents]
             world_x = cat((world_x, ends), 0)
         return world_x[..., 0].swapaxes(0, 1)
+
+    def _compose(self, rotations: torch.Tensor) -> torch.Tensor:
+        """The torch path of :meth:`__call__`: ``(B, J, 4)`` -> ``(B, J + E, 3)``.
+
+        Composed as quaternions (a product per level and the offsets rotated), which on
+        1,000 poses took two thirds of the time of matrices.
+        """
+        tree = self._torch
+        local = rotations.transpose(0, 1)
+        world_q = world_x = local
+        for level, grown, offsets in zip(tree.levels, self._grown, tree.offsets, strict=True):
+            offsets = offsets[..., 0]
+            if grown is None:
+                world_q = local[level]
+                world_x = offsets.expand(-1, local.shape[1], -1)
+            else:
+                pq = world_q[grown]
+                world_q = torch.cat((world_q, quaternion_multiply(pq, local[level])), 0)
+                world_x = torch.cat((world_x, quaternion_rotate(pq, offsets) + world_x[grown]), 0)
+        points = world_x[self._grown_order]
+        if len(self._grown_ends):
+            ends = self._grown_ends
+            points = torch.cat((points, quaternion_rotate(world_q[ends], tree.end_offsets[..., 0])
+                                + world_x[ends]), 0)
+        return points.transpose(0, 1)

@@ -97,6 +97,21 @@ def quaternion_apply(q: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
     return v + 2.0 * (w * uv + torch.linalg.cross(u, uv))
 
 
+def cross_product(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+    """``(..., 3)`` cross products, written out (plain arithmetic in an exported graph)."""
+    ax, ay, az = a.unbind(-1)
+    bx, by, bz = b.unbind(-1)
+    return torch.stack((ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx), -1)
+
+
+def quaternion_rotate(q: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
+    """:func:`quaternion_apply` in plain arithmetic (as it exports to ONNX): ``(..., 3)``."""
+    w, u = q[..., :1], q[..., 1:]
+    u, v = torch.broadcast_tensors(u, v)
+    uv = cross_product(u, v)
+    return v + 2.0 * (w * uv + cross_product(u, uv))
+
+
 def quaternion_continuity(q: torch.Tensor, dim: int = 0) -> torch.Tensor:
     """Flip signs along ``dim`` so consecutive quaternions lie in the same hemisphere.
 

@@ -63,7 +63,7 @@ def test_agents_stand_on_the_path_advance_by_the_predicted_speed_and_face_along_
     # The world hips sit on the path; the body faces +Z (the line's direction).
     world = np.stack([f.world[0] for f in frames])
     np.testing.assert_allclose(world[:, 0, [0, 2]], root, atol=1e-5)
-    np.testing.assert_allclose(gen._batch.heading, 0.0, atol=1e-9)
+    np.testing.assert_allclose(gen.agent_field("heading"), 0.0, atol=1e-9)
     assert all(np.isfinite(f.world).all() and np.isfinite(f.rotations).all() for f in frames)
     np.testing.assert_allclose(np.linalg.norm(frames[-1].rotations, axis=-1), 1.0, atol=1e-5)
 
@@ -77,8 +77,8 @@ def test_heading_turns_with_a_circle_and_kappa_follows_its_curvature(model):
     arc = SPEED * 40
     tangent = path.heading(arc)
     # delta turns the body towards the inside of the turn (left on this circle), by at most pi.
-    assert 0.0 <= gen._batch.heading[0] - tangent <= math.pi + 1e-9
-    np.testing.assert_allclose(gen._batch.kappa[0], SPEED**2 * 0.5, rtol=0.05)
+    assert 0.0 <= gen.agent_field("heading")[0] - tangent <= math.pi + 1e-9
+    np.testing.assert_allclose(gen.agent_field("kappa")[0], SPEED**2 * 0.5, rtol=0.05)
     np.testing.assert_allclose(frame.root[0], path.position(arc), atol=1e-6)
 
 
@@ -90,7 +90,7 @@ def test_the_target_speed_drops_in_turns_by_the_controls_slowing():
     for _ in range(150):
         gen.step()
     # s_lowpass converges to the happy pace, halved on a circle of 1 m (1 - 0.5 * 1/m).
-    np.testing.assert_allclose(gen._batch.speed_lowpass, [0.045, 0.0225], rtol=0.02)
+    np.testing.assert_allclose(gen.agent_field("speed_lowpass"), [0.045, 0.0225], rtol=0.02)
 
 
 def test_a_batch_of_agents_steps_exactly_like_each_agent_alone(model):
@@ -150,11 +150,11 @@ def test_an_agent_stops_at_the_end_of_an_open_path(model):
     for _ in range(300):
         frame = gen.step()
     np.testing.assert_allclose(frame.root[0], path.position(path.length), atol=1e-9)
-    assert gen._batch.arc[0] <= path.length
+    assert gen.agent_field("arc")[0] <= path.length
     # Within the last STOP_DISTANCE the target speed falls to zero, so the phase stops too.
-    theta = gen._batch.theta.copy()
+    theta = gen.agent_field("theta")
     gen.step()
-    np.testing.assert_allclose(gen._batch.theta, theta, atol=1e-3)
+    np.testing.assert_allclose(gen.agent_field("theta"), theta, atol=1e-3)
     assert STOP_DISTANCE > 0
 
 
@@ -299,8 +299,8 @@ def test_pace_scales_the_emotions_target_speed_and_is_bounded(model):
     for _ in range(150):
         gen.step()
     target = model.controls.speed[0]
-    np.testing.assert_allclose(gen._batch.speed_lowpass, [0.5 * target, target, 1.5 * target],
-                               rtol=0.02)
+    np.testing.assert_allclose(gen.agent_field("speed_lowpass"),
+                               [0.5 * target, target, 1.5 * target], rtol=0.02)
     with pytest.raises(ValueError, match=r"between 0\.5 and 1\.5"):
         gen.set_pace(slow, 2.0)
     with pytest.raises(ValueError, match=r"between 0\.5 and 1\.5"):
@@ -317,6 +317,6 @@ def test_adding_and_removing_agents_keeps_every_field_in_step(model):
     gen.remove_agent(ids[3])
     assert gen.agents == (ids[0], ids[2], ids[4])
     b = gen._batch
-    assert {len(b), b.state.shape[1], len(b.rotations), len(b.offset), len(b.slot)} == {3}
+    assert {len(b), b.state.shape[1], len(b.rows), len(b.emotion), len(b.slot)} == {3}
     np.testing.assert_allclose(gen.first_frame().world, kept_world, atol=1e-12)
     assert len(gen._paths) == 3

@@ -41,7 +41,8 @@ def test_pretrained_walks_follow_the_path_with_paces_ordered_as_in_the_data():
         assert np.isfinite(world).all()
         hips = world[:, model.controls.mover]
         _, distance = circle().nearest(hips[:, [0, 2]])
-        assert distance.max() < 1e-6
+        # On the path up to the float32 step and the 1 cm grid the host samples it from.
+        assert distance.max() < 2e-5
         # Feet stay near the ground and the head above the hips (no collapse).
         assert world[:, :, 1].min() > -0.15
         head = model.controls.skeleton.index("Head")

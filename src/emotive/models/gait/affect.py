@@ -33,10 +33,9 @@ RATIO_FLOOR = 1e-6
 
 def log_ratios(features: torch.Tensor) -> torch.Tensor:
     """``(..., 18)`` features with the ratio columns replaced by their logarithm."""
-    idx = torch.as_tensor(RATIO_COLUMNS, device=features.device)
-    out = features.clone()
-    out[..., idx] = torch.log(features[..., idx].clamp_min(RATIO_FLOOR))
-    return out
+    ratio = torch.zeros(features.shape[-1], dtype=torch.bool, device=features.device)
+    ratio[list(RATIO_COLUMNS)] = True
+    return torch.where(ratio, torch.log(features.clamp_min(RATIO_FLOOR)), features)
 
 
 def gait_affective(positions: torch.Tensor, roles) -> torch.Tensor:

@@ -9,7 +9,8 @@ frame (the original implementation re-ran the network over a whole input window 
 frame, one agent at a time). Agents can be added and removed, and their emotion and path
 changed, between steps.
 
-Per agent and frame:
+Per agent and frame, one call of :class:`~emotive.models.gait.step_graph.AgentStep` (the
+module that :mod:`~emotive.models.gait.step_export` exports as one ONNX graph) does:
 
 1. The network reads the current pose (heading-canonical local rotations, as in training), the
    18 affective features of that pose, the emotion ``m`` at the agent's clock, the movement
@@ -34,15 +35,22 @@ Per agent and frame:
    every other joint keeps the predicted local rotation, except the joints above the mover
    (the Bandai file root ``joint_Root``), which stay at the identity as in the data.
 
+5. Planted feet are held by the causal foot lock (:mod:`emotive.ik.foot_lock`).
+
+The generator itself is the step's host, as an engine would be: it keeps each agent's arc
+length, path, emotion schedule and pace, samples each path around its agent
+(:meth:`PathBank.ahead <emotive.paths.bank.PathBank.ahead>`, in the agent's frame) and feeds
+the step's state back.
+
 Starts. By default an agent starts from the built-in standing pose (a statistic of the
-training data kept in the checkpoint), held for :data:`WARMUP_FRAMES` frames to settle the GRU,
-so no data set is needed; or from a primer clip on the model's rig, whose frames are run
-through the network first. Predicted values are clamped to plausible ranges and a non-finite
-prediction keeps the previous pose, so the output never holds NaN.
+training data kept in the checkpoint), held for :data:`WARMUP_FRAMES` frames to settle the GRU
+(the step's start mode), so no data set is needed; or from a primer clip on the model's rig,
+whose frames are run through the network first. Predicted values are clamped to plausible
+ranges and a non-finite prediction keeps the previous pose, so the output never holds NaN.
 
 Files. :func:`~emotive.models.gait.walks.generate_walks` (behind ``emotive generate``) also
-cleans up foot contacts after the fact; the streaming generator returns the network's raw
-frames.
+cleans up foot contacts after the fact (with the future known); the streaming generator holds
+planted feet causally, frame by frame.
 
 Randomness. The network is deterministic; the seed draws each agent's starting stepping phase,
 which sets which foot leads and the timing of steps.
@@ -60,40 +68,41 @@ import numpy as np
 import torch
 
 from emotive.core.motion import Motion
-from emotive.core.roles import resolve_roles
 from emotive.data.emotion import EmotionLike, EmotionSchedule
 from emotive.errors import PathError
-from emotive.features.movement import LOWPASS_HZ
-from emotive.ik.foot_lock import initial_lock_state, leg_rig, lock_feet
-from emotive.models.gait.affect import gait_affective
 from emotive.models.gait.agent_inputs import check_pace, to_model_schedule
 from emotive.models.gait.agents import AgentBatch, empty_batch, joined, kept
-from emotive.models.gait.controls import MIN_TURN_FACTOR
 from emotive.models.gait.model import GaitModel
-from emotive.models.gait.network import GaitInputs, same_hemisphere
+from emotive.models.gait.network import GaitInputs
 from emotive.models.gait.primer import primer_features
+from emotive.models.gait.step_graph import (
+    FULL_TURN_CURVATURE,
+    HEIGHT_RANGE,
+    MAX_SPEED,
+    PATH_MERGE_SLOPE,
+    STOP_DISTANCE,
+    WARMUP_STEPS,
+    AgentStep,
+    StepOutputs,
+)
+from emotive.models.gait.step_path import to_agent_frame
 from emotive.paths import GroundPath, waypoints
 from emotive.paths.bank import PathBank
-from emotive.transforms.kinematics import PoseFK
-from emotive.transforms.rotations import quaternion_multiply, yaw_quaternion
 
-#: Frames of the standing start fed to the network before the first step.
-WARMUP_FRAMES = 10
-#: Distance (metres) before the end of an open path over which the agent slows to a stop.
-STOP_DISTANCE = 1.0
-#: Curvature (1/m) from which ``delta`` turns the body fully to the inside of a turn.
-FULL_TURN_CURVATURE = 0.2
-#: Metres of the gap to a new path (:meth:`GaitGenerator.set_path`) closed per metre walked:
-#: the agent merges onto it at about 27 degrees.
-PATH_MERGE_SLOPE = 0.5
-#: Clamps of the predicted root features, ``(low, high)``: height in metres, speed in metres
-#: per second.
-HEIGHT_RANGE = (-0.6, 0.4)
-MAX_SPEED = 8.0
+__all__ = [
+    "FULL_TURN_CURVATURE", "HEIGHT_RANGE", "MAX_SPEED", "MIN_TARGET_DISTANCE",
+    "PATH_MERGE_SLOPE", "STOP_DISTANCE", "TARGET_LEAD", "WARMUP_FRAMES", "GaitFrame",
+    "GaitGenerator", "to_model_schedule", "torch_threads",
+]
+
+#: Frames of the standing start: the network runs over ``WARMUP_FRAMES - 1`` of them.
+WARMUP_FRAMES = WARMUP_STEPS + 1
 #: A "go to" target nearer than this (metres) stops the agent where it stands.
 MIN_TARGET_DISTANCE = 0.05
 #: A "go to" path leaves along the agent's heading for up to this many metres.
 TARGET_LEAD = 0.75
+#: ``path_left`` of an agent on a loop (metres): never near an end.
+LOOP_LEFT = 1e9
 
 
 class GaitFrame(NamedTuple):
@@ -150,7 +159,7 @@ class GaitGenerator:
     Args:
         model: the trained model (:func:`~emotive.models.gait.model.load_gait_model`).
         seed: seed of the agents' starting phases (agent ``k`` draws from ``seed`` and ``k``).
-        dtype: float type of the network.
+        dtype: float type of the step.
         threads: torch intra-op threads while stepping (:func:`torch_threads`); the
             caller's setting is restored after each call.
         foot_lock: hold planted feet still in every streamed frame
@@ -162,6 +171,13 @@ class GaitGenerator:
             :func:`~emotive.models.gait.onnx_runtime.load_onnx_network`; it must be the
             model's network (same config and weights). ``None``: the model's own network,
             cast to ``dtype``.
+        step: the whole step to call instead of :class:`AgentStep` (same arguments and
+            :class:`~emotive.models.gait.step_graph.StepOutputs`, torch tensors), e.g. the
+            exported graph on ONNX Runtime (:mod:`~emotive.models.gait.step_runtime`).
+        traced: run the torch step as TorchScript, traced at the first step
+            (:meth:`AgentStep.traced <emotive.models.gait.step_graph.AgentStep.traced>`;
+            the same numbers, less interpreter time); ``False`` runs it eagerly. Ignored
+            with ``network`` or ``step``.
 
     Example::
 
@@ -173,43 +189,28 @@ class GaitGenerator:
     """
 
     def __init__(self, model: GaitModel, seed: int = 0, dtype: torch.dtype = torch.float32,
-                 threads: int = 1, foot_lock: bool = True, network: Any = None) -> None:
+                 threads: int = 1, foot_lock: bool = True, network: Any = None,
+                 step: Any = None, traced: bool = True) -> None:
         if threads < 1:
             raise ValueError(f"threads must be at least 1, got {threads}")
         self.threads = int(threads)
         self.model = model
         self.seed = int(seed)
         self.dtype = dtype
-        net = model.network.to(dtype).eval() if network is None else network
-        self.network = net
-        c = model.controls
+        self.graph = AgentStep(model, dtype, foot_lock=foot_lock, network=network)
+        self.network = self.graph.network
+        self._step_fn = self.graph if step is None else step
+        self._trace_pending = bool(traced) and step is None and network is None
         self.labels = model.labels
         self.fps = model.fps
-        self._freq = torch.as_tensor(c.step_frequency, dtype=torch.float64)
-        self._speed = torch.as_tensor(c.speed, dtype=torch.float64)
-        sk = c.skeleton
-        self._fk = PoseFK(sk.parents, c.standing_positions, sk.end_site_parents,
-                          sk.end_site_offsets, dtype)
-        self._roles = resolve_roles(c.skeleton)
-        standing = self._fk(torch.as_tensor(c.standing_rotations, dtype=dtype)[None])[0]
-        self._legs = leg_rig(sk, self._roles, standing.double().numpy()) if foot_lock else None
-        self._local = torch.as_tensor(c.standing_positions, dtype=dtype)
-        # Joints above the mover stay at the identity (as in the data): the network's
-        # prediction for them is discarded, so the mover alone places the body.
-        above, j = [], int(c.skeleton.parents[c.mover])
-        while j >= 0:
-            above.append(j)
-            j = int(c.skeleton.parents[j])
-        self._above = torch.as_tensor(above, dtype=torch.long)
-        # World height of the mover = base + h.
-        self._base = float(c.standing_positions[c.mover, 1] - c.standing_height)
-        self._alpha = 1.0 - math.exp(-2.0 * math.pi * LOWPASS_HZ / self.fps)
+        self._offsets = self.graph.sampling.offsets()
+        self._local = np.asarray(model.controls.standing_positions, dtype=np.float64)
         self._next_id = 0
         self._agents: dict[int, _Agent] = {}
         self._order: list[int] = []
         self._paths = PathBank()
-        self._batch = empty_batch(net.initial_state(0, dtype=dtype), c.skeleton.num_joints,
-                                  len(self.labels), dtype)
+        self._batch = empty_batch(self.network.initial_state(0, dtype=dtype),
+                                  self.graph.layout.size, len(self.labels), dtype)
 
     # ----------------------------------------------------------------------------- agents
 
@@ -220,6 +221,22 @@ class GaitGenerator:
 
     def __len__(self) -> int:
         return len(self._order)
+
+    def agent_field(self, name: str) -> np.ndarray:
+        """``(B, *shape)`` one field of every agent's state row, in batch order (float64).
+
+        ``name`` is a field of :mod:`~emotive.models.gait.step_layout` (``theta``,
+        ``heading``, ``lock_planted``, ...) or ``arc`` (metres along the path).
+
+        Raises:
+            KeyError: an unknown field.
+        """
+        if name == "arc":
+            return self._batch.arc.copy()
+        if name not in self.graph.layout.shapes:
+            raise KeyError(f"no agent field {name!r}; fields: arc, "
+                           f"{', '.join(self.graph.layout.shapes)}")
+        return self.graph.layout.field(self._batch.rows, name).double().numpy().copy()
 
     def add_agent(
         self, path: GroundPath, emotion: EmotionLike = "neutral", primer: Motion | None = None,
@@ -269,27 +286,29 @@ class GaitGenerator:
         schedules = [to_model_schedule(e, self.labels) for e in emotions]
         ids = list(range(self._next_id, self._next_id + n))
         m = np.stack([sch.at(0.0) for sch in schedules]) if n else np.zeros((0, len(self.labels)))
-        with torch_threads(self.threads):
-            if primer is None:
+        slots = np.array([self._paths.add(path) for path in paths], dtype=np.int64)
+        new = AgentBatch(self.network.initial_state(n, dtype=self.dtype),
+                         torch.zeros(n, self.graph.layout.size, dtype=self.dtype), m,
+                         np.asarray(starts, dtype=np.float64), np.zeros(n), slots,
+                         np.asarray(paces, dtype=np.float64))
+        try:
+            with torch_threads(self.threads), torch.no_grad():
                 phases = np.array([
                     np.random.default_rng([self.seed, a] if seeds is None else [int(seeds[k])])
                     .uniform(0.0, 2.0 * math.pi) for k, a in enumerate(ids)])
-                state, rot, root, affective, theta, slp = self._standing_start(m, phases)
-            else:
-                state, rot, root, affective, theta, slp = self._primer_start(primer, m)
-        slots = [self._paths.add(path) for path in paths]
+                for _ in range(WARMUP_STEPS):
+                    out = self._call(new, np.ones(n), phases)
+                    new = new.with_values(state=out.recurrent, rows=out.agent)
+                if primer is not None:
+                    new = self._primed(new, primer)
+        except Exception:
+            for slot in slots:
+                self._paths.release(int(slot))
+            raise
         self._next_id += n
         for a, path, sch in zip(ids, paths, schedules, strict=True):
             self._agents[a] = _Agent(path, sch, 0.0, len(sch.times) == 1)
         self._order.extend(ids)
-        arc = np.asarray(starts, dtype=np.float64)
-        heading = np.array([float(p.heading(float(s))) for p, s in zip(paths, arc, strict=True)])
-        new = AgentBatch(
-            state, rot, root, affective, m, theta, slp, arc, np.zeros(n), np.zeros(n),
-            np.zeros(n), heading, np.zeros((n, 2)), np.array(slots, dtype=np.int64),
-            np.array(paces), self._paths.curvature(np.array(slots, dtype=np.int64), arc),
-            *initial_lock_state(n),
-        )
         self._batch = joined(self._batch, new)
         return ids
 
@@ -329,9 +348,8 @@ class GaitGenerator:
         if not isinstance(path, GroundPath):
             raise PathError(f"an agent needs a GroundPath to follow, got {type(path).__name__}")
         k = self._index(agent)
-        here = self._ground_position(k)
-        arc, _ = path.nearest(here[None])
-        self._follow(agent, k, path, float(arc[0]), here - path.position(float(arc[0])))
+        arc, _ = path.nearest(self._ground(k)[None])
+        self._follow(agent, k, path, float(arc[0]))
 
     def set_target(self, agent: int, xz: Sequence[float]) -> GroundPath:
         """Send an agent to a ground point ``(x, z)`` (metres) and stop it there.
@@ -352,8 +370,8 @@ class GaitGenerator:
         if target.shape != (2,) or not np.isfinite(target).all():
             raise PathError(f"set_target: the target must be two finite numbers (x, z) in "
                             f"metres, got {xz!r}")
-        here = self._ground_position(k)
-        yaw = float(self._batch.heading[k])
+        here = self._ground(k)
+        yaw = float(self.graph.layout.field(self._batch.rows[k:k + 1], "heading")[0])
         facing = np.array([math.sin(yaw), math.cos(yaw)])
         gap = float(np.linalg.norm(target - here))
         if gap < MIN_TARGET_DISTANCE:
@@ -361,7 +379,7 @@ class GaitGenerator:
         else:
             lead = here + min(TARGET_LEAD, 0.4 * gap) * facing
             path = waypoints(np.stack((here, lead, target)), name="target")
-        self._follow(agent, k, path, 0.0, np.zeros(2))
+        self._follow(agent, k, path, 0.0)
         return path
 
     def set_pace(self, agent: int, pace: float) -> None:
@@ -374,20 +392,21 @@ class GaitGenerator:
         k = self._index(agent)
         self._batch.pace[k] = check_pace(pace)
 
-    def _ground_position(self, k: int) -> np.ndarray:
-        """``(2,)`` where agent ``k`` (batch index) stands, path gap included."""
-        b = self._batch
-        return self._paths.position(b.slot[k:k + 1], b.arc[k:k + 1])[0] + b.offset[k]
+    def _ground(self, k: int) -> np.ndarray:
+        """``(2,)`` where agent ``k`` (batch index) stands."""
+        rows = self._batch.rows[k:k + 1]
+        layout = self.graph.layout
+        return np.array([float(layout.field(rows, "x")[0]), float(layout.field(rows, "z")[0])])
 
-    def _follow(self, agent: int, k: int, path: GroundPath, arc: float, offset: np.ndarray
-                ) -> None:
-        """Put agent ``agent`` (batch index ``k``) on ``path`` at ``arc`` with a gap ``offset``."""
+    def _follow(self, agent: int, k: int, path: GroundPath, arc: float) -> None:
+        """Put agent ``agent`` (batch index ``k``) on ``path`` at ``arc``.
+
+        The gap between where it stands and the path is what the step closes as it walks.
+        """
         b = self._batch
         self._paths.release(int(b.slot[k]))
         b.slot[k] = self._paths.add(path)
         b.arc[k] = arc
-        b.offset[k] = offset
-        b.curvature[k] = self._paths.curvature(b.slot[k:k + 1], b.arc[k:k + 1])[0]
         self._agents[agent].path = path
 
     def _index(self, agent: int) -> int:
@@ -398,50 +417,58 @@ class GaitGenerator:
 
     # ----------------------------------------------------------------------------- starts
 
-    def _affective_of(self, rot: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """World positions ``(..., J + E, 3)`` of canonical poses and their affective features."""
-        pos = self._fk(rot.reshape(-1, *rot.shape[-2:])).reshape(*rot.shape[:-2], -1, 3)
-        return pos, gait_affective(pos, self._roles)
-
     @torch.no_grad()
-    def _standing_start(self, m: np.ndarray, theta: np.ndarray) -> tuple:
-        """Network state after :data:`WARMUP_FRAMES` standing frames, for ``(N, C)`` emotions."""
-        c = self.model.controls
-        n, k = len(m), WARMUP_FRAMES - 1
-        rot = torch.as_tensor(c.standing_rotations, dtype=self.dtype)
-        _, affective = self._affective_of(rot)
-        root = torch.tensor([c.standing_height, 0.0, 0.0], dtype=self.dtype)
-        movement = torch.zeros(n, k, 5, dtype=self.dtype)
-        movement[..., 0] = torch.as_tensor(np.sin(theta), dtype=self.dtype)[:, None]
-        movement[..., 1] = torch.as_tensor(np.cos(theta), dtype=self.dtype)[:, None]
-        inputs = GaitInputs(
-            rot.expand(n, k, -1, -1), affective.expand(n, k, -1),
-            torch.as_tensor(m, dtype=self.dtype), movement, root.expand(n, k, -1),
-        )
-        _, state = self.network(inputs)
-        return (state, rot.expand(n, -1, -1).clone(), root.expand(n, -1).clone(),
-                affective.expand(n, -1).clone(), np.asarray(theta, dtype=np.float64),
-                np.zeros(n))
+    def _primed(self, new: AgentBatch, primer: Motion) -> AgentBatch:
+        """Started agents ``new`` continued from the primer's last frame.
 
-    @torch.no_grad()
-    def _primer_start(self, primer: Motion, m: np.ndarray) -> tuple:
-        """Network state after the primer's frames, for ``(N, C)`` emotions."""
+        The network runs over the primer's frames from a zero state, and the agents take its
+        last pose, root features, phase and speed (standing where the standing start put
+        them).
+        """
         f = primer_features(primer, self.model.controls)
-        n = len(m)
+        n, layout = len(new), self.graph.layout
 
         def t(x: np.ndarray) -> torch.Tensor:
             x = torch.as_tensor(x, dtype=self.dtype)
             return x.expand(n, *x.shape).clone()
 
         inputs = GaitInputs(t(f["rotations"][:-1]), t(f["affective"][:-1]),
-                            torch.as_tensor(m, dtype=self.dtype), t(f["movement"][:-1]),
+                            torch.as_tensor(new.emotion, dtype=self.dtype), t(f["movement"][:-1]),
                             t(f["root"][:-1]))
         _, state = self.network(inputs)
-        theta = math.atan2(f["movement"][-1, 0], f["movement"][-1, 1])
-        return (state, t(f["rotations"][-1]), t(f["root"][-1]), t(f["affective"][-1]),
-                np.full(n, theta), np.full(n, float(f["movement"][-1, 3])))
+        fields = layout.unpack(new.rows.clone())
+        fields["rotations"] = t(f["rotations"][-1])
+        fields["root"] = t(f["root"][-1])
+        fields["affective"] = t(f["affective"][-1])
+        fields["theta"] = torch.full((n,), math.atan2(f["movement"][-1, 0], f["movement"][-1, 1]),
+                                     dtype=self.dtype)
+        fields["speed_lowpass"] = torch.full((n,), float(f["movement"][-1, 3]), dtype=self.dtype)
+        return new.with_values(state=state, rows=layout.pack(fields))
 
     # ----------------------------------------------------------------------------- stepping
+
+    def _call(self, batch: AgentBatch, start: np.ndarray, phase: np.ndarray) -> StepOutputs:
+        """One call of the step on ``batch``: the host's part (path samples) and the step."""
+        layout, bank = self.graph.layout, self._paths
+        rows = batch.rows
+        xz = torch.stack((layout.field(rows, "x"), layout.field(rows, "z")), -1).double().numpy()
+        heading = layout.field(rows, "heading").double().numpy()
+        points = bank.ahead(batch.slot, batch.arc, self._offsets)
+        left = np.where(bank.closed(batch.slot), LOOP_LEFT, bank.length(batch.slot) - batch.arc)
+
+        def t(x: np.ndarray) -> torch.Tensor:
+            return torch.as_tensor(np.asarray(x), dtype=self.dtype)
+
+        if self._trace_pending:
+            self._trace_pending = False
+            try:
+                traced = self.graph.traced(LOOP_LEFT)
+            except (AttributeError, RuntimeError):  # a torch without TorchScript tracing
+                traced = None
+            if traced is not None:
+                self._step_fn = lambda *args: StepOutputs(*traced(*args))
+        return self._step_fn(batch.state, rows, t(batch.emotion), t(batch.pace),
+                             t(to_agent_frame(points, xz, heading)), t(left), t(start), t(phase))
 
     def _update_emotions(self) -> None:
         b = self._batch
@@ -450,121 +477,37 @@ class GaitGenerator:
             if not info.constant:
                 b.emotion[k] = info.schedule.at(b.clock[k] - info.schedule_start)
 
-    def _turn_factor(self, curvature: np.ndarray) -> np.ndarray:
-        """``(B,)`` the data's slowing in turns at each agent's curvature ``(B,)`` (1/m)."""
-        slowing = self.model.controls.turn_slowing
-        if slowing <= 0:
-            return np.ones(len(curvature))
-        return np.maximum(1.0 - slowing * np.abs(curvature), MIN_TURN_FACTOR)
-
     def step(self) -> GaitFrame:
         """Advance every agent by one frame (``1 / fps`` seconds) and return the new frame."""
         with torch_threads(self.threads), torch.no_grad():
-            return self._step()
-
-    def _step(self) -> GaitFrame:
-        b, bank = self._batch, self._paths
-        dt = 1.0 / self.fps
-        m = torch.as_tensor(b.emotion, dtype=torch.float64)
-        omega = (m @ self._freq).numpy() * np.sqrt(b.pace)
-        target = (m @ self._speed).numpy() * b.pace
-        # Slow to a stop before the end of an open path.
-        remaining = np.where(bank.closed(b.slot), np.inf, bank.length(b.slot) - b.arc)
-        target = (target * np.clip(remaining / STOP_DISTANCE, 0.0, 1.0)
-                  * self._turn_factor(b.curvature))
-        slp = b.speed_lowpass
-        moving = np.where(target > 1e-9, np.clip(slp / np.maximum(target, 1e-9), 0, 1), 0)
-        moving = np.where(remaining > STOP_DISTANCE, 1.0, moving)
-        omega = omega * moving
-        movement = np.stack((np.sin(b.theta), np.cos(b.theta), omega, slp, b.kappa), 1)
-        inputs = GaitInputs(
-            b.rotations, b.affective if self.network.config.use_affective else None,
-            m.to(self.dtype), torch.as_tensor(movement, dtype=self.dtype), b.root,
-        )
-        out, state = self.network.step(inputs, b.state)
-        rot = out.rotations
-        finite = torch.isfinite(rot).all(-1).all(-1) & torch.isfinite(out.root).all(-1)
-        rot = torch.where(finite[:, None, None], same_hemisphere(rot, b.rotations), b.rotations)
-        rot[:, self._above] = torch.tensor([1.0, 0.0, 0.0, 0.0], dtype=self.dtype)
-        root = torch.where(finite[:, None], out.root, b.root)
-        state = torch.where(finite[None, :, None], state, b.state)
-        h = root[:, 0].clamp(*HEIGHT_RANGE)
-        s_pf = root[:, 1].clamp(0.0, MAX_SPEED / self.fps)
-        delta = root[:, 2].clamp(0.0, math.pi)
-        root = torch.stack((h, s_pf, delta), 1)
-        s_np, delta_np = s_pf.double().numpy(), delta.double().numpy()
-        # Controls and placement along the paths, every agent at once.
-        arc = b.arc + np.minimum(s_np, np.maximum(remaining, 0.0))
-        curvature = bank.curvature(b.slot, arc)
-        side = np.clip(curvature / FULL_TURN_CURVATURE, -1.0, 1.0)
-        delta_lp = b.delta + self._alpha * (delta_np - b.delta)
-        gap = np.linalg.norm(b.offset, axis=1)
-        shrink = np.maximum(gap - PATH_MERGE_SLOPE * s_np, 0.0) / np.maximum(gap, 1e-12)
-        offset = b.offset * shrink[:, None]
-        world_canon, affective = self._affective_of(rot)
-        self._batch = b.with_values(
-            state=state, rotations=rot, root=root, affective=affective,
-            theta=np.mod(b.theta + omega, 2.0 * math.pi),
-            speed_lowpass=slp + self._alpha * (target - slp), arc=arc, delta=delta_lp,
-            clock=b.clock + dt, kappa=s_np ** 2 * np.abs(curvature),
-            heading=bank.heading(b.slot, arc) + side * delta_lp, offset=offset,
-            curvature=curvature,
-        )
-        self._update_emotions()
-        xz = bank.position(b.slot, arc) + offset
-        frame = self._frame(rot, world_canon, h, xz)
-        if self._legs is None:
-            return frame
-        rotations, world, feet = lock_feet(self._legs, self._batch.feet, frame.rotations,
-                                           frame.world, s_np * self.fps, self.fps)
-        self._batch = self._batch.with_feet(feet)
-        return frame._replace(rotations=rotations, world=world)
+            b = self._batch
+            n = len(b)
+            out = self._call(b, np.zeros(n), np.zeros(n))
+            arc = b.arc + out.advance.double().numpy()
+            self._batch = b.with_values(state=out.recurrent, rows=out.agent, arc=arc,
+                                        clock=b.clock + 1.0 / self.fps)
+            self._update_emotions()
+            return self._frame(out.rotations, out.root_position, out.world)
 
     @torch.no_grad()
     def first_frame(self) -> GaitFrame:
         """The agents' current frame before any step.
 
-        The agents' current frame before any step (the standing pose or the primer's last
-        frame placed on the path), so that a clip can start where the agents stand.
+        The standing pose or the primer's last frame placed where the agents stand, so that
+        a clip can start there.
         """
-        b = self._batch
-        xz = self._paths.position(b.slot, b.arc) + b.offset
-        world_canon, _ = self._affective_of(b.rotations)
-        return self._frame(b.rotations, world_canon, b.root[:, 0], xz)
+        f = self.graph.layout.unpack(self._batch.rows)
+        xz = torch.stack((f["x"], f["z"]), -1)
+        rotations, root, world, _ = self.graph.pose_world(f["rotations"], f["root"][:, 0], xz,
+                                                          f["heading"])
+        return self._frame(rotations, root, world)
 
-    def _frame(self, rot: torch.Tensor, world_canon: torch.Tensor, h: torch.Tensor,
-               xz: np.ndarray) -> GaitFrame:
-        """Canonical poses placed in the world: yaw about Y, then ground position and height.
-
-        Args:
-            rot: ``(B, J, 4)`` heading-canonical local rotations.
-            world_canon: ``(B, J + E, 3)`` their positions with the mover over the origin.
-            h: ``(B,)`` root height features.
-            xz: ``(B, 2)`` ground positions.
-        """
-        mv = self.model.controls.mover
-        rotations = rot.clone()
-        rotations[:, mv] = quaternion_multiply(
-            yaw_quaternion(torch.as_tensor(self._batch.heading, dtype=self.dtype)), rot[:, mv])
-        positions = self._local.expand(len(rot), -1, -1).clone()
-        height = self._base + h
-        positions[:, mv, 0] = torch.as_tensor(xz[:, 0], dtype=self.dtype)
-        positions[:, mv, 1] = height
-        positions[:, mv, 2] = torch.as_tensor(xz[:, 1], dtype=self.dtype)
-        world = _place(world_canon.double().numpy(), self._batch.heading, xz,
-                       (height - self._local[mv, 1]).double().numpy())
-        return GaitFrame(tuple(self._order), rotations.double().numpy(),
-                         positions.double().numpy(), world, self._batch.emotion.copy(), xz)
-
-
-def _place(canonical: np.ndarray, heading: np.ndarray, xz: np.ndarray, lift: np.ndarray
-           ) -> np.ndarray:
-    """``(B, P, 3)`` canonical points turned, moved and raised.
-
-    ``(B, P, 3)`` canonical points turned by ``heading`` about Y, moved to ``xz`` and
-    raised by ``lift``.
-    """
-    c, s = np.cos(heading)[:, None], np.sin(heading)[:, None]
-    x, y, z = canonical[..., 0], canonical[..., 1], canonical[..., 2]
-    return np.stack((c * x + s * z + xz[:, :1], y + lift[:, None], -s * x + c * z + xz[:, 1:]),
-                    -1)
+    def _frame(self, rotations: torch.Tensor, root: torch.Tensor, world: torch.Tensor
+               ) -> GaitFrame:
+        """The frame of placed rotations ``(B, J, 4)``, mover positions ``(B, 3)`` and points."""
+        root_np = root.double().numpy()
+        positions = np.repeat(self._local[None], len(root_np), 0)
+        positions[:, self.graph.mover] = root_np
+        return GaitFrame(tuple(self._order), rotations.double().numpy(), positions,
+                         world.double().numpy(), self._batch.emotion.copy(),
+                         root_np[:, [0, 2]].copy())

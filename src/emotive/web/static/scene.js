@@ -1,0 +1,123 @@
+// The 3-D view of the browser runtime, as the served app draws it (emotive serve's app.js): a
+// ground grid in metres (Y up), lights, an orbit camera, the drawn and selected paths, the
+// selection ring, and the ground point under the pointer.
+
+import * as THREE from "three";
+import { OrbitControls } from "three/addons/controls/OrbitControls.js";
+
+// Side of the ground grid, metres.
+const GRID_SIZE = 40;
+
+/**
+ * Lines every metre over a `size` x `size` square, the axes in `axisColor`. Each line is cut
+ * into 1 m segments: some WebGL implementations (SwiftShader) drop a whole line that crosses
+ * the camera's near plane instead of clipping it.
+ */
+function groundGrid(size, axisColor, lineColor) {
+  const half = size / 2;
+  const positions = [];
+  const colors = [];
+  const axis = new THREE.Color(axisColor);
+  const line = new THREE.Color(lineColor);
+  for (let i = -half; i <= half; i++) {
+    const c = i === 0 ? axis : line;
+    for (let j = -half; j < half; j++) {
+      positions.push(i, 0, j, i, 0, j + 1, j, 0, i, j + 1, 0, i);
+      for (let k = 0; k < 4; k++) colors.push(c.r, c.g, c.b);
+    }
+  }
+  const geometry = new THREE.BufferGeometry();
+  geometry.setAttribute("position", new THREE.Float32BufferAttribute(positions, 3));
+  geometry.setAttribute("color", new THREE.Float32BufferAttribute(colors, 3));
+  return new THREE.LineSegments(geometry, new THREE.LineBasicMaterial({ vertexColors: true }));
+}
+
+/** The view in `container`: renderer, scene, the `world` group (AR moves it), camera, lines. */
+export function createView(container) {
+  const renderer = new THREE.WebGLRenderer({ antialias: true });
+  renderer.setPixelRatio(Math.min(window.devicePixelRatio, 2));
+  renderer.setSize(window.innerWidth, window.innerHeight);
+  renderer.xr.enabled = true;
+  container.append(renderer.domElement);
+
+  const scene = new THREE.Scene();
+  const background = new THREE.Color(0x1d2126);
+  scene.background = background;
+  scene.add(new THREE.HemisphereLight(0xffffff, 0x445566, 2.0));
+  const sun = new THREE.DirectionalLight(0xffffff, 1.6);
+  sun.position.set(5, 10, 7);
+  scene.add(sun);
+
+  // Everything placed in scene coordinates (metres, Y up); AR moves it onto the real floor.
+  const world = new THREE.Group();
+  scene.add(world);
+  const floor = new THREE.Group();
+  const ground = new THREE.Mesh(new THREE.PlaneGeometry(GRID_SIZE, GRID_SIZE).rotateX(-Math.PI / 2),
+                                new THREE.MeshStandardMaterial({
+                                  // Pushed back in depth so the grid lines on it always show.
+                                  color: 0x272c32, roughness: 1, polygonOffset: true,
+                                  polygonOffsetFactor: 1, polygonOffsetUnits: 4,
+                                }));
+  floor.add(ground, groundGrid(GRID_SIZE, 0x8a96a3, 0x48515b));
+  world.add(floor);
+
+  const camera = new THREE.PerspectiveCamera(50, window.innerWidth / window.innerHeight, 0.05, 200);
+  camera.position.set(0, 7, 10.5);
+  const controls = new OrbitControls(camera, renderer.domElement);
+  controls.target.set(0, 0.5, 0);
+  controls.update();
+
+  const lineAt = (color) => {
+    const line = new THREE.Line(new THREE.BufferGeometry(), new THREE.LineBasicMaterial({ color }));
+    line.frustumCulled = false;
+    world.add(line);
+    return line;
+  };
+
+  const selectionRing = new THREE.Mesh(new THREE.RingGeometry(0.35, 0.42, 40).rotateX(-Math.PI / 2),
+                                       new THREE.MeshBasicMaterial({ color: 0xffffff }));
+  selectionRing.position.y = 0.01;
+  selectionRing.visible = false;
+  world.add(selectionRing);
+
+  window.addEventListener("resize", () => {
+    camera.aspect = window.innerWidth / window.innerHeight;
+    camera.updateProjectionMatrix();
+    renderer.setSize(window.innerWidth, window.innerHeight);
+  });
+
+  const raycaster = new THREE.Raycaster();
+  const groundPlane = new THREE.Plane(new THREE.Vector3(0, 1, 0), 0);
+
+  return {
+    renderer, scene, background, world, floor, camera, controls, selectionRing,
+    drawnLine: lineAt(0x4fd1ff),
+    selectedPathLine: lineAt(0xffd54f),
+    fixedView: { position: camera.position.clone(), target: controls.target.clone() },
+
+    /** Show `points` [[x, z], ...] as `line`, just above the ground. */
+    setLine(line, points) {
+      // A new geometry each time: the number of points changes.
+      line.geometry.dispose();
+      line.geometry = new THREE.BufferGeometry().setFromPoints(
+        points.map(([x, z]) => new THREE.Vector3(x, 0.02, z)));
+    },
+
+    /** The ground point (scene coordinates) under a pointer event, or null. */
+    groundAt(event) {
+      const rect = renderer.domElement.getBoundingClientRect();
+      const ndc = new THREE.Vector2(((event.clientX - rect.left) / rect.width) * 2 - 1,
+                                    -((event.clientY - rect.top) / rect.height) * 2 + 1);
+      raycaster.setFromCamera(ndc, camera);
+      const hit = raycaster.ray.intersectPlane(groundPlane, new THREE.Vector3());
+      return hit ? world.worldToLocal(hit) : null;
+    },
+
+    /** Page coordinates [px, py] of the ground point (x, z). */
+    toScreen(x, z) {
+      const p = world.localToWorld(new THREE.Vector3(x, 0, z)).project(camera);
+      const rect = renderer.domElement.getBoundingClientRect();
+      return [rect.left + ((p.x + 1) / 2) * rect.width, rect.top + ((1 - p.y) / 2) * rect.height];
+    },
+  };
+}
