@@ -2,7 +2,8 @@
 
 :class:`WsClient` reads in the background (so the server never sees it stall unless a test
 asks it to stop reading), decodes every frame with :func:`emotive.serve.frames.decode_frame`
-and matches replies to requests by ``ref``.
+(in the layout it asked for, the server's default unless told; the world positions of compact
+frames computed from the rig of ``/api/skeleton``) and matches replies to requests by ``ref``.
 
 Waits are on what the server makes: frames (counted, or by their scene time, frame number /
 fps) and its frame counter (``/api/stats``). Scene time runs behind wall time on a busy
@@ -22,6 +23,7 @@ import httpx
 import websockets
 
 from emotive.serve.frames import Frame, decode_frame
+from emotive.serve.rig import FrameRig
 
 #: Wall seconds a test waits for any one reply: a hang guard.
 REPLY_TIMEOUT = 120.0
@@ -33,10 +35,20 @@ HANG_SECONDS = 300.0
 POLL_SECONDS = 0.1
 
 
-def ws_url(base: str, token: str | None = None) -> str:
-    """The websocket URL of a server's base URL."""
+def ws_url(base: str, token: str | None = None, encoding: int | None = None) -> str:
+    """The websocket URL of a server's base URL (with its token and frame layout, if any)."""
     url = base.replace("http://", "ws://", 1) + "/ws"
-    return url if token is None else f"{url}?token={token}"
+    query = [f"token={token}"] * (token is not None) + [f"encoding={encoding}"] * (
+        encoding is not None)
+    return url + ("?" + "&".join(query) if query else "")
+
+
+async def frame_rig(base: str, token: str | None = None) -> FrameRig | None:
+    """The rig of a server's frames (``/api/skeleton``), or ``None`` when it does not answer."""
+    headers = {} if token is None else {"Authorization": f"Bearer {token}"}
+    async with httpx.AsyncClient(timeout=REPLY_TIMEOUT) as http:
+        reply = await http.get(f"{base}/api/skeleton", headers=headers)
+    return FrameRig.from_info(reply.json()) if reply.status_code == 200 else None
 
 
 class WsClient:
@@ -47,9 +59,13 @@ class WsClient:
         replies: every JSON message received, in order.
     """
 
-    def __init__(self, base: str, token: str | None = None, read: bool = True) -> None:
-        self.url = ws_url(base, token)
+    def __init__(self, base: str, token: str | None = None, read: bool = True,
+                 encoding: int | None = None) -> None:
+        self.base = base
+        self.token = token
+        self.url = ws_url(base, token, encoding)
         self.read = read
+        self.rig: FrameRig | None = None
         self.frames: list[tuple[float, Frame]] = []
         self.replies: list[dict[str, Any]] = []
         self._refs = itertools.count()
@@ -58,6 +74,7 @@ class WsClient:
         self._task: asyncio.Task | None = None
 
     async def __aenter__(self) -> WsClient:
+        self.rig = await frame_rig(self.base, self.token)
         self.ws = await websockets.connect(self.url, max_size=None, open_timeout=REPLY_TIMEOUT)
         if self.read:
             self._task = asyncio.create_task(self._reader())
@@ -72,7 +89,7 @@ class WsClient:
         try:
             async for message in self.ws:
                 if isinstance(message, bytes):
-                    self.frames.append((time.perf_counter(), decode_frame(message)))
+                    self.frames.append((time.perf_counter(), decode_frame(message, self.rig)))
                 else:
                     self.replies.append(json.loads(message))
                 self._changed.set()

@@ -51,7 +51,10 @@ class FakeCrowd:
 
 
 class Sink:
-    def frame(self, data: bytes) -> None:
+    def encodings(self) -> frozenset[int]:
+        return frozenset()
+
+    def frame(self, data: dict[int, bytes]) -> None:
         pass
 
     def notice(self, client: int, message: dict) -> None:

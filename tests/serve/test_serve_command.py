@@ -23,6 +23,12 @@ def test_bad_options_exit_2(monkeypatch, capsys):
     assert code == 2 and "max-agents" in err
     code, _, err = run_main(monkeypatch, capsys, "serve", "--max-agents-per-client", "0")
     assert code == 2 and "max-agents-per-client must be a positive number" in err
+    code, _, err = run_main(monkeypatch, capsys, "serve", "--workers", "0")
+    assert code == 2 and "--workers must be a whole number 1-64" in err
+    code, _, err = run_main(monkeypatch, capsys, "serve", "--step-budget", "0")
+    assert code == 2 and "--step-budget is a share of a frame" in err
+    code, _, err = run_main(monkeypatch, capsys, "serve", "--worker-kind", "fibers")
+    assert code == 2 and "--worker-kind 'fibers' is unknown" in err and "threads" in err
 
 
 def test_a_port_in_use_is_named(monkeypatch, capsys):

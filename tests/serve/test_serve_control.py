@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from emotive.paths import waypoints
+from emotive.serve.quantize import SIGNED_ERROR
 from emotive.serve.testing import running_server
 from serve_client import WsClient
 
@@ -51,7 +52,9 @@ def test_set_emotion_changes_the_reported_state(url):
     assert after["valence"] == pytest.approx(-0.8) and after["arousal"] == pytest.approx(-0.5)
     assert "happy" not in after["emotion"] or after["emotion"]["happy"] < 0.2
     k = list(frames[-1].ids).index(agent)
-    np.testing.assert_allclose(frames[-1].valence_arousal[k], [-0.8, -0.5], atol=1e-6)
+    # Compact frames carry valence and arousal in 16 bits (then read as float32).
+    np.testing.assert_allclose(frames[-1].valence_arousal[k], [-0.8, -0.5],
+                               atol=SIGNED_ERROR + 1e-7)
 
 
 def test_a_drawn_path_is_followed(url):

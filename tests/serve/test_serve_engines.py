@@ -11,6 +11,7 @@ import pytest
 from emotive.serve.engines import _optional_module, load_engine
 from emotive.serve.errors import ServeError
 from emotive.serve.messages import to_command
+from emotive.serve.quantize import SIGNED_ERROR
 from emotive.serve.settings import ServeSettings
 from emotive.serve.simulation import JOIN_PER_TICK, Simulation
 from emotive.serve.testing import running_server
@@ -49,7 +50,8 @@ def test_optional_engines_stream(settings, model, backend):
     assert sorted(last.ids.tolist()) == sorted(ids)
     assert last.rotations.shape[1] == len(sk["joints"])
     assert last.emotion.shape[1] == len(sk["labels"])
-    np.testing.assert_allclose(last.valence_arousal, [[0.6, 0.4]] * 2, atol=1e-6)
+    # Compact frames carry valence and arousal in 16 bits (then read as float32).
+    np.testing.assert_allclose(last.valence_arousal, [[0.6, 0.4]] * 2, atol=SIGNED_ERROR + 1e-7)
     assert np.isfinite(last.world).all()
     assert np.abs(frames[0].world - last.world).max() > 0.01
 
@@ -60,7 +62,10 @@ def test_a_missing_optional_module_is_a_typed_error():
 
 
 class _Discard:
-    def frame(self, data: bytes) -> None:
+    def encodings(self) -> frozenset[int]:
+        return frozenset()
+
+    def frame(self, data: dict[int, bytes]) -> None:
         pass
 
     def notice(self, client: int, message: dict) -> None:

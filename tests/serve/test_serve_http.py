@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import json
 
 import httpx
 import pygltflib
@@ -26,11 +27,14 @@ def url():
 def test_health_and_stats(url):
     health = httpx.get(f"{url}/api/health").json()
     assert health == {"status": "ok", "version": health["version"], "model": "gait",
-                      "backend": "torch"}
+                      "backend": "torch", "workers": 1, "live_workers": 1,
+                      "encodings": [1, 2]}
     stats = httpx.get(f"{url}/api/stats").json()
     assert {"agents", "clients", "fps", "frames", "dropped_frames", "late_frames", "step_ms",
-            "model", "backend"} <= set(stats)
+            "tick_ms", "workers", "lost_agents", "model", "backend"} <= set(stats)
     assert set(stats["step_ms"]) == {"p50", "p99"}
+    assert set(stats["tick_ms"]) == {"commands", "step", "encode", "step_cpu"}
+    assert stats["workers"] == 1
 
 
 def test_skeleton_describes_the_frames(url):
@@ -142,3 +146,29 @@ def test_other_sites_are_refused(url):
 
     assert asyncio.run(closed_with("http://evil.example")) == 4403
     assert asyncio.run(closed_with(url)) is None
+
+
+def test_each_client_gets_the_frame_layout_it_asked_for(url):
+    async def first_frames() -> dict[str, bytes]:
+        got = {}
+        for query in ("encoding=1", "encoding=2", ""):
+            address = url.replace("http://", "ws://", 1) + "/ws" + (f"?{query}" if query else "")
+            async with websockets.connect(address, max_size=None) as ws:
+                await ws.send(json.dumps({"type": "add_agent"}))
+                while query not in got:
+                    message = await ws.recv()
+                    if isinstance(message, bytes) and int.from_bytes(message[16:20], "little"):
+                        got[query] = message
+        address = url.replace("http://", "ws://", 1) + "/ws?encoding=3"
+        async with websockets.connect(address) as ws:
+            with pytest.raises(websockets.ConnectionClosed) as closed:
+                await ws.recv()
+        got["refused"] = closed.value.rcvd
+        return got
+
+    got = asyncio.run(first_frames())
+    assert got["encoding=1"][:4] == b"EMF1" and got["encoding=2"][:4] == b"EMF2"
+    assert got[""][:4] == b"EMF2"
+    assert got["refused"].code == 4400 and "encoding" in got["refused"].reason
+    sk = httpx.get(f"{url}/api/skeleton").json()
+    assert len(sk["end_site_offsets"]) == len(sk["end_site_parents"])

@@ -13,7 +13,7 @@ from collections.abc import Callable
 import numpy as np
 
 from emotive.models.gait.generate import GaitFrame
-from emotive.serve.frames import decode_frame
+from emotive.serve.frames import DEFAULT_ENCODING, decode_frame
 from emotive.serve.settings import ServeSettings
 from emotive.serve.simulation import Simulation
 
@@ -52,11 +52,14 @@ class Collect:
         self.times: list[float] = []
         self.clock = clock
 
-    def frame(self, data: bytes) -> None:
-        self.frames.append(data)
+    def encodings(self) -> frozenset[int]:
+        return frozenset({DEFAULT_ENCODING})
+
+    def frame(self, data: dict[int, bytes]) -> None:
+        self.frames.append(data[DEFAULT_ENCODING])
         self.times.append(self.clock())
 
-    def notice(self, client: int, message: dict) -> None:
+    def notice(self, client: int | None, message: dict) -> None:
         raise AssertionError("no notices expected")
 
 

@@ -33,6 +33,19 @@ def serve(
     backend: Annotated[str, typer.Option("--backend", help="Where the gait network runs: "
                                          "torch or onnx (ONNX Runtime).")] = "torch",
     seed: SeedOpt = 0,
+    workers: Annotated[int | None, typer.Option(
+        "--workers", help="Processes stepping the scene's agents, each its share (1: step "
+        "in the server's own process). Default: the cores, at most 4.",
+        show_default=False)] = None,
+    worker_kind: Annotated[str, typer.Option(
+        "--worker-kind", help="With --workers above 1, what a worker is: threads (of the "
+        "server's process), processes, or auto: threads on the torch backend, whose step "
+        "releases the interpreter lock, processes on onnx.")] = "auto",
+    step_budget: Annotated[float, typer.Option(
+        "--step-budget", help="Share of a frame each step (of the server, or of each "
+        "worker) may take with every agent admitted; beyond it new agents are refused "
+        "(above 1: frames come late; for load tests).")]
+    = 0.5,
     log_level: Annotated[str, typer.Option("--log-level", help="uvicorn's log level: "
                                            "critical, error, warning, info, debug.")]
     = "warning",
@@ -43,22 +56,27 @@ def serve(
     try:
         from emotive.serve.app import create_app
         from emotive.serve.server import base_url, bind, bound_port, uvicorn_server
-        from emotive.serve.settings import ServeSettings
+        from emotive.serve.settings import ServeSettings, default_workers
     except ModuleNotFoundError as exc:
         raise ServeError(f"emotive serve needs the serve extra ({exc.name} is missing): "
                          "pip install 'emotive[serve]'") from None
 
     settings = ServeSettings(host=host, port=port, token=token, model=model, backend=backend,
                              seed=seed, max_agents=max_agents,
-                             max_agents_per_client=max_agents_per_client).checked()
+                             max_agents_per_client=max_agents_per_client,
+                             workers=default_workers() if workers is None else workers,
+                             worker_kind=worker_kind, step_budget=step_budget).checked()
     sock = bind(settings.host, settings.port)
     try:
         app = create_app(settings)
         url = base_url(settings.host, bound_port(sock))
         query = f"?token={settings.token}&" if settings.token else "?"
+        steppers = ("in this process" if settings.workers == 1
+                    else f"by {settings.workers} worker "
+                         f"{'threads' if settings.worker_threads else 'processes'}")
         typer.echo(f"emotive serve: {settings.model} on {settings.backend}, up to "
                    f"{settings.max_agents} agents ({settings.max_agents_per_client} per "
-                   "client)")
+                   f"client), stepped {steppers}")
         typer.echo(f"  app:   {url}/{query.rstrip('&?')}")
         typer.echo(f"  demo:  {url}/{query}demo=1")
         typer.echo(f"  ws:    {url.replace('http', 'ws', 1)}/ws  (protocol: docs/serve.md)")

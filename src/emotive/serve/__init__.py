@@ -1,13 +1,20 @@
 """``emotive serve``: one shared scene of walking agents, streamed to browsers and programs.
 
-The protocol (routes, control messages, the binary frame layout) is documented in
+The protocol (routes, control messages, the binary frame layouts) is documented in
 ``docs/serve.md``. Modules, bottom to top: :mod:`~emotive.serve.errors` (typed errors),
 :mod:`~emotive.serve.settings` (the server's limits and the bind rule),
-:mod:`~emotive.serve.frames` (the binary frame layout), :mod:`~emotive.serve.limits` (message
-size, nesting depth, rate), :mod:`~emotive.serve.messages` (control messages into commands),
+:mod:`~emotive.serve.quantize` (the compact frame's number codes),
+:mod:`~emotive.serve.frames` (the binary frame layouts, versions 1 and 2),
+:mod:`~emotive.serve.rig` (world positions from a frame's rotations),
+:mod:`~emotive.serve.limits` (message size, nesting depth, rate),
+:mod:`~emotive.serve.messages` (control messages into commands),
 :mod:`~emotive.serve.engines` (one adapter over the gait and FCRBM streaming generators),
+:mod:`~emotive.serve.worker_process` (a step worker's side: its requests and frame block),
+:mod:`~emotive.serve.shards` (the server's handles on its step workers, threads or
+processes), :mod:`~emotive.serve.workers` (the scene split over step workers),
+:mod:`~emotive.serve.capacity` (the admission limit from measured step times),
 :mod:`~emotive.serve.recording` (recorded frames into motions),
-:mod:`~emotive.serve.simulation` (the thread that owns the engine and its clock),
+:mod:`~emotive.serve.simulation` (the thread that drives the engine on its clock),
 :mod:`~emotive.serve.hub` (per-client outboxes), :mod:`~emotive.serve.preparation` (control
 messages prepared off the event loop and the simulation thread),
 :mod:`~emotive.serve.session` (one websocket

@@ -1,9 +1,12 @@
 """The ASGI app of ``emotive serve``: the HTTP API, the websocket and the browser app.
 
 :func:`create_app` loads the engine first (so a missing model or backend fails before
-anything binds), then builds a FastAPI app whose lifespan starts the simulation thread
+anything binds), then builds a FastAPI app whose lifespan starts the step workers (with
+``workers`` > 1, :class:`~emotive.serve.workers.ShardedEngine`), the simulation thread
 (:class:`~emotive.serve.simulation.Simulation`) and the preparer of control messages
-(:class:`~emotive.serve.preparation.Preparer`) and stops them. Routes are those of
+(:class:`~emotive.serve.preparation.Preparer`) and stops them all, workers last. A websocket
+chooses its frame layout with ``?encoding=1`` or ``2`` (default
+:data:`~emotive.serve.frames.DEFAULT_ENCODING`). Routes are those of
 ``docs/serve.md``; with a token every ``/api`` route and the websocket check it with
 :func:`hmac.compare_digest` (``Authorization: Bearer T`` or ``?token=T``); the page at ``/``
 and its files under ``/static`` are public, as they hold no scene data. Browsers let any site
@@ -35,6 +38,7 @@ from emotive.data.emotion import label_points
 from emotive.io.gltf import encode_gltf, gltf_document
 from emotive.serve.engines import Engine, load_engine
 from emotive.serve.errors import MessageError
+from emotive.serve.frames import DEFAULT_ENCODING, ENCODINGS
 from emotive.serve.hub import Hub, LoopSink
 from emotive.serve.limits import TokenBucket
 from emotive.serve.messages import Command
@@ -43,6 +47,7 @@ from emotive.serve.recording import FORMATS, write_recording
 from emotive.serve.session import Session
 from emotive.serve.settings import ServeSettings, is_loopback
 from emotive.serve.simulation import Simulation
+from emotive.serve.workers import ShardedEngine
 
 #: The browser app's folder, shipped inside the package.
 STATIC = Path(__file__).parent / "static"
@@ -50,6 +55,8 @@ STATIC = Path(__file__).parent / "static"
 UNAUTHORIZED_CLOSE = 4401
 #: Close code of a websocket opened by a page of another site.
 FORBIDDEN_CLOSE = 4403
+#: Close code of a websocket asking for a frame layout the server does not have.
+BAD_ENCODING_CLOSE = 4400
 #: Seconds an HTTP request waits for the simulation thread.
 REPLY_TIMEOUT = 10.0
 #: The interpreter's thread switch interval while the server runs, seconds (Python's
@@ -105,6 +112,8 @@ def skeleton_info(engine: Engine) -> dict[str, Any]:
         "joints": list(sk.names), "parents": sk.parents.tolist(),
         "end_site_parents": sk.end_site_parents.tolist(),
         "offsets": np.round(sk.offsets, 6).tolist(), "mover": engine.mover,
+        "end_site_offsets": np.round(np.asarray(sk.end_site_offsets).reshape(-1, 3),
+                                     6).tolist(),
         "labels": list(engine.labels), "fps": engine.fps,
         "points": {n: [round(float(v), 4), round(float(a), 4)]
                    for n, (v, a) in zip(engine.labels, points, strict=True)},
@@ -154,7 +163,12 @@ def create_app(settings: ServeSettings | None = None) -> FastAPI:
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
-        state.sim = Simulation(engine, settings, LoopSink(state.hub, asyncio.get_running_loop()))
+        scene: Engine | ShardedEngine = engine
+        if settings.workers > 1:
+            scene = await asyncio.to_thread(ShardedEngine, engine, settings.workers,
+                                            settings.max_agents, settings.seed,
+                                            settings.worker_threads)
+        state.sim = Simulation(scene, settings, LoopSink(state.hub, asyncio.get_running_loop()))
         state.preparer = Preparer(state.sim, settings)
         switch = sys.getswitchinterval()
         sys.setswitchinterval(SWITCH_INTERVAL)
@@ -167,6 +181,8 @@ def create_app(settings: ServeSettings | None = None) -> FastAPI:
             sim, preparer, state.sim, state.preparer = state.sim, state.preparer, None, None
             await preparer.stop()
             await asyncio.to_thread(sim.stop)
+            if isinstance(scene, ShardedEngine):
+                await asyncio.to_thread(scene.close)
 
     app = FastAPI(title="emotive serve", version=emotive.__version__, lifespan=lifespan,
                   docs_url=None, redoc_url=None, openapi_url=None)
@@ -184,11 +200,16 @@ def create_app(settings: ServeSettings | None = None) -> FastAPI:
         if not token_ok(settings.token, websocket.headers, websocket.query_params):
             await websocket.close(UNAUTHORIZED_CLOSE, "missing or wrong token")
             return
+        encoding = websocket.query_params.get("encoding", str(DEFAULT_ENCODING))
+        if encoding not in [str(v) for v in ENCODINGS]:
+            await websocket.close(BAD_ENCODING_CLOSE, f"unknown frame encoding "
+                                  f"{encoding[:20]!r}: use ?encoding=1 or ?encoding=2")
+            return
         if state.sim is None or state.preparer is None:
             await websocket.close(1013, "the scene is not running")
             return
         await Session(websocket, state.sim, state.hub, state.preparer, settings,
-                      state.reads).run()
+                      state.reads, int(encoding)).run()
 
     return app
 
@@ -221,8 +242,13 @@ def _api_routes(app: FastAPI, state: _State) -> None:
 
     @app.get("/api/health")
     async def health() -> dict[str, Any]:
-        return {"status": "ok", "version": emotive.__version__, "model": engine.model,
-                "backend": engine.backend}
+        workers = state.settings.workers
+        scene = state.sim.engine if state.sim is not None else None
+        live = len(scene.live()) if isinstance(scene, ShardedEngine) else workers
+        return {"status": "ok" if live == workers else "degraded",
+                "version": emotive.__version__, "model": engine.model,
+                "backend": engine.backend, "workers": workers, "live_workers": live,
+                "encodings": list(ENCODINGS)}
 
     @app.get("/api/stats")
     async def stats() -> dict[str, Any]:

@@ -2,9 +2,11 @@
 
 Each connected client has an :class:`Outbox` holding at most ``buffered_frames`` frames (the
 newest; an older one is dropped and counted, per client and in total) and its pending
-replies. The simulation thread never touches an outbox: :class:`LoopSink` hands each encoded
-frame to the event loop with ``call_soon_threadsafe``, where :meth:`Hub.publish` appends the
-same bytes object to every outbox and returns.
+replies, and the frame layout it asked for (:data:`~emotive.serve.frames.ENCODINGS`). The
+simulation thread never touches an outbox: it encodes each frame once per layout in
+:meth:`Hub.encodings` and :class:`LoopSink` hands the bytes to the event loop with
+``call_soon_threadsafe``, where :meth:`Hub.publish` appends the same bytes object to every
+outbox of that layout and returns.
 
 A client is blamed only for its own backlog: it is marked stalled (and its session closes it
 with 1008) when its socket has accepted nothing (the session's sender waits inside one send)
@@ -23,6 +25,7 @@ from collections import deque
 from collections.abc import Callable
 from typing import Any
 
+from emotive.serve.frames import DEFAULT_ENCODING
 from emotive.serve.settings import ServeSettings
 
 #: A frame that reaches an outbox within this many frame periods of the last counts as on
@@ -41,12 +44,14 @@ class Outbox:
             counts as stalled.
         period: the scene's frame period, seconds.
         clock: the time source, seconds.
+        encoding: the frame layout it gets (1 or 2).
     """
 
     def __init__(self, client: int, frames: int, max_replies: int, stall_seconds: float,
-                 period: float = 1.0 / 30.0, clock: Callable[[], float] = time.monotonic
-                 ) -> None:
+                 period: float = 1.0 / 30.0, clock: Callable[[], float] = time.monotonic,
+                 encoding: int = DEFAULT_ENCODING) -> None:
         self.client = client
+        self.encoding = int(encoding)
         self.frames: deque[bytes] = deque()
         self.replies: deque[dict[str, Any]] = deque()
         self.max_frames = int(frames)
@@ -128,30 +133,44 @@ class Hub:
         self.outboxes: dict[int, Outbox] = {}
         self.dropped_frames = 0
         self._next = 0
+        self._encodings: frozenset[int] = frozenset()
 
-    def open(self) -> Outbox:
-        """A new client's outbox."""
+    def open(self, encoding: int = DEFAULT_ENCODING) -> Outbox:
+        """A new client's outbox, for frames in layout ``encoding``."""
         s = self.settings
         box = Outbox(self._next, s.buffered_frames, s.max_replies, s.stall_seconds,
-                     self.period)
+                     self.period, encoding=encoding)
         self._next += 1
         self.outboxes[box.client] = box
+        self._encodings = frozenset(b.encoding for b in self.outboxes.values())
         return box
 
     def close(self, box: Outbox) -> None:
         """Forget a client."""
         self.outboxes.pop(box.client, None)
+        self._encodings = frozenset(b.encoding for b in self.outboxes.values())
 
-    def publish(self, data: bytes) -> None:
-        """Give one encoded frame to every client (event loop only)."""
+    def encodings(self) -> frozenset[int]:
+        """The layouts the connected clients get (any thread: one read of a frozen set)."""
+        return self._encodings
+
+    def publish(self, frames: dict[int, bytes]) -> None:
+        """Give one frame to every client, in its layout (event loop only).
+
+        A client whose layout is missing (it connected after the frame was encoded) skips
+        that frame.
+        """
         for box in list(self.outboxes.values()):
-            self.dropped_frames += box.put_frame(data)
+            data = frames.get(box.encoding)
+            if data is not None:
+                self.dropped_frames += box.put_frame(data)
 
-    def notice(self, client: int, message: dict[str, Any]) -> None:
-        """Give one client a message, if it is still connected (event loop only)."""
-        box = self.outboxes.get(client)
-        if box is not None:
-            box.put_reply(message)
+    def notice(self, client: int | None, message: dict[str, Any]) -> None:
+        """Give a client a message, if still connected (``None``: all); event loop only."""
+        boxes = (list(self.outboxes.values()) if client is None
+                 else [b for b in (self.outboxes.get(client),) if b is not None])
+        for box in boxes:
+            box.put_reply(dict(message))
 
 
 class LoopSink:
@@ -173,10 +192,14 @@ class LoopSink:
             # The loop closed while the server stops; nobody is left to receive it.
             pass
 
-    def frame(self, data: bytes) -> None:
-        """Hand a frame to every client without waiting."""
+    def encodings(self) -> frozenset[int]:
+        """The layouts the connected clients get."""
+        return self.hub.encodings()
+
+    def frame(self, data: dict[int, bytes]) -> None:
+        """Hand a frame (its bytes in each layout) to every client without waiting."""
         self._call(self.hub.publish, data)
 
-    def notice(self, client: int, message: dict[str, Any]) -> None:
-        """Hand a message to one client without waiting."""
+    def notice(self, client: int | None, message: dict[str, Any]) -> None:
+        """Hand a message to one client (``None``: every client) without waiting."""
         self._call(self.hub.notice, client, message)

@@ -25,6 +25,7 @@ import json
 from starlette.websockets import WebSocket, WebSocketDisconnect
 
 from emotive.serve.errors import NO_REF, MessageError
+from emotive.serve.frames import DEFAULT_ENCODING
 from emotive.serve.hub import Hub, Outbox
 from emotive.serve.limits import TokenBucket, check_size, head_ref, parse_message, ref_of
 from emotive.serve.messages import Command
@@ -50,10 +51,12 @@ class Session:
         settings: the limits.
         reads: the server's messages read per second, shared by every session
             (``server_rate``; ``None``: a bucket of this session's own).
+        encoding: the frame layout the client asked for (1 or 2).
     """
 
     def __init__(self, ws: WebSocket, sim: Simulation, hub: Hub, preparer: Preparer,
-                 settings: ServeSettings, reads: TokenBucket | None = None) -> None:
+                 settings: ServeSettings, reads: TokenBucket | None = None,
+                 encoding: int = DEFAULT_ENCODING) -> None:
         self.ws = ws
         self.sim = sim
         self.hub = hub
@@ -62,7 +65,7 @@ class Session:
         self.bucket = TokenBucket(settings.rate, settings.burst)
         self.refusals = TokenBucket(settings.rate, max(1, settings.burst // 4))
         self.reads = reads or TokenBucket(settings.server_rate, int(settings.server_rate))
-        self.box: Outbox = hub.open()
+        self.box: Outbox = hub.open(encoding)
         self.lane = preparer.open(self.box)
 
     async def run(self) -> None:

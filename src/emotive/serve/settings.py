@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import ipaddress
 import math
+import os
 from dataclasses import dataclass, fields, replace
 
 from emotive.serve.errors import ServeError
@@ -20,6 +21,25 @@ MODELS = ("gait", "fcrbm")
 BACKENDS = ("torch", "onnx")
 #: Host names that always mean this machine.
 LOOPBACK_NAMES = ("localhost",)
+#: Most step workers ``emotive serve`` starts by itself (each loads its own engine).
+MAX_DEFAULT_WORKERS = 4
+#: What ``--worker-kind`` can name.
+WORKER_KINDS = ("auto", "threads", "processes")
+#: Largest ``--step-budget`` (a share of the frame period).
+MAX_STEP_BUDGET = 10.0
+
+
+def default_workers() -> int:
+    """Step workers ``emotive serve`` uses unless told.
+
+    The cores it may run on, at most :data:`MAX_DEFAULT_WORKERS` (1: the scene steps in the
+    server's own process).
+    """
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        cores = os.cpu_count() or 1
+    return max(1, min(cores, MAX_DEFAULT_WORKERS))
 
 
 def is_loopback(host: str) -> bool:
@@ -45,6 +65,17 @@ class ServeSettings:
         model: ``"gait"`` (the main network) or ``"fcrbm"``.
         backend: ``"torch"`` or ``"onnx"`` (the gait network's step on ONNX Runtime).
         seed: seed of the agents' starting phases.
+        workers: processes that step the scene's agents, each its share (1: the server's
+            own simulation thread steps them all, in its process).
+        worker_kind: with ``workers`` above 1, what a worker is: ``"threads"`` (threads of
+            the server's process), ``"processes"``, or ``"auto"``: threads for the torch
+            backend (its step releases the interpreter lock: two threads stepped 1.9 times
+            as many agents as one), processes for ONNX Runtime (two threads stepped no
+            more than one there; two processes 1.7 times as many).
+        step_budget: share of a frame period the step of each stepping engine (the
+            simulation thread's, or each worker's) may take, by its measured processor
+            time, with every agent the scene admits (above 0; above 1 admits more agents
+            than are stepped in a frame, so frames come late: for load tests only).
         max_agents: agents the scene may hold at once (the server may hold fewer: as many as
             its measured step time lets it step within half a frame).
         max_agents_per_client: agents one connection may have in the scene at once.
@@ -77,6 +108,9 @@ class ServeSettings:
     model: str = "gait"
     backend: str = "torch"
     seed: int = 0
+    workers: int = 1
+    worker_kind: str = "auto"
+    step_budget: float = 0.5
     max_agents: int = 500
     max_agents_per_client: int = 200
     max_message_bytes: int = 1_000_000
@@ -123,6 +157,18 @@ class ServeSettings:
         if self.backend == "onnx" and self.model != "gait":
             raise ServeError(f"--backend onnx runs the gait network only; drop it or use "
                              f"--model gait (got --model {self.model})")
+        if isinstance(self.workers, bool) or not isinstance(self.workers, int) \
+                or not 1 <= self.workers <= 64:
+            raise ServeError(f"--workers must be a whole number 1-64, got {self.workers!r} "
+                             "(1: step in the server's own process)")
+        if self.worker_kind not in WORKER_KINDS:
+            raise ServeError(f"--worker-kind {self.worker_kind!r} is unknown; use one of "
+                             f"{', '.join(WORKER_KINDS)}")
+        budget = self.step_budget
+        if not (isinstance(budget, int | float) and math.isfinite(budget)
+                and 0 < budget <= MAX_STEP_BUDGET):
+            raise ServeError(f"--step-budget is a share of a frame, above 0 and at most "
+                             f"{MAX_STEP_BUDGET:g}; got {budget!r}")
         if not 0 <= self.port <= 65535:
             raise ServeError(f"--port {self.port} is not a TCP port; use 1-65535 (0: any free)")
         for name in ("max_agents", "max_agents_per_client", "max_message_bytes", "max_depth",
@@ -135,6 +181,13 @@ class ServeSettings:
                 flag = name.replace("_", "-")
                 raise ServeError(f"{flag} must be a positive number, got {value!r}")
         return replace(self, token=token)
+
+    @property
+    def worker_threads(self) -> bool:
+        """Whether the step workers are threads (``worker_kind``, ``"auto"`` resolved)."""
+        if self.worker_kind == "auto":
+            return self.backend == "torch"
+        return self.worker_kind == "threads"
 
     @property
     def ws_max_size(self) -> int:

@@ -29,6 +29,8 @@ import httpx
 import numpy as np
 import pytest
 
+from emotive.serve.frames import Frame, decode_frame, encode_frame
+from emotive.serve.rig import FrameRig
 from emotive.serve.testing import running_server
 from tools import headless_chromium
 
@@ -240,6 +242,41 @@ def test_frame_decoder_reads_the_documented_layout(app):
     for name, array in arrays.items():
         np.testing.assert_array_equal(np.array(frame[name], dtype="<f4"), array.reshape(-1))
     assert "layout needs" in decoded["bad"]
+
+
+def test_compact_frame_decoder_matches_python(app):
+    # A version-2 frame of the server's rig, decoded by the page (protocol.js, rig.js) and by
+    # emotive.serve.frames: the same rotations and world positions.
+    info = httpx.get(f"{app.base}/api/skeleton", timeout=REQUEST_SECONDS,
+                     headers={"Authorization": f"Bearer {TOKEN}"}).json()
+    b, j, c = 3, len(info["joints"]), len(info["labels"])
+    rng = np.random.default_rng(1)
+    rotations = rng.normal(size=(b, j, 4))
+    rotations /= np.linalg.norm(rotations, axis=-1, keepdims=True)
+    frame = Frame(77, 2.5, np.array([4, 9, -2]), rng.uniform(-1, 1, (b, 2)),
+                  rng.random((b, c)), rng.normal(size=(b, 3)), rotations)
+    data = encode_frame(frame, 2)
+    expected = decode_frame(data, FrameRig.from_info(info))
+    decoded = app.page.evaluate(
+        """async ([bytes, info]) => {
+            const { decodeFrame } = await import("/static/protocol.js");
+            const { Rig } = await import("/static/rig.js");
+            const f = decodeFrame(new Uint8Array(bytes).buffer, new Rig(info));
+            const plain = {};
+            for (const [k, v] of Object.entries(f)) {
+                plain[k] = ArrayBuffer.isView(v) ? [...v] : v;
+            }
+            return plain;
+        }""", [list(data), info])
+    assert (decoded["version"], decoded["frame"], decoded["time"]) == (2, 77, 2.5)
+    assert (decoded["B"], decoded["J"], decoded["C"]) == (b, j, c)
+    assert decoded["P"] == j + len(info["end_site_parents"])
+    assert decoded["ids"] == [4, 9, -2]
+    for name, ours in (("rotations", expected.rotations), ("mover", expected.root),
+                       ("va", expected.valence_arousal), ("weights", expected.emotion),
+                       ("points", expected.world)):
+        np.testing.assert_allclose(np.array(decoded[name]), np.ravel(ours), atol=2e-6,
+                                   err_msg=name)
 
 
 def test_characters_move(app):

@@ -29,6 +29,7 @@ import * as THREE from "three";
 import { GLTFLoader } from "three/addons/loaders/GLTFLoader.js";
 import { OrbitControls } from "three/addons/controls/OrbitControls.js";
 import { Connection, socketUrl, throttled } from "./protocol.js";
+import { Rig } from "./rig.js";
 import { Mannequin, StickFigure, emotionColor } from "./figures.js";
 import { LabelSliders, MAIN_LABELS, ValenceArousalDisc, weightsText } from "./emotion-controls.js";
 import { setUpXR } from "./xr.js";
@@ -181,6 +182,7 @@ window.addEventListener("resize", () => {
 
 const app = {
   skeleton: null,
+  rig: null,
   template: null,
   figureMode: "mannequin",
   cameraMode: "fixed",
@@ -698,6 +700,7 @@ async function loadMannequin() {
 function connect() {
   const status = (text) => { $("stat-connection").textContent = text; };
   app.connection = new Connection(socketUrl(token), {
+    rig: app.rig,
     onFrame,
     onError: toast,
     onOpen: () => status("connected"),
@@ -717,6 +720,7 @@ function connect() {
 async function start() {
   const [skeleton, template] = await Promise.all([getJSON("/api/skeleton"), loadMannequin()]);
   app.skeleton = skeleton;
+  app.rig = new Rig(skeleton);
   app.template = template;
   if (!template) {
     app.figureMode = "sticks";

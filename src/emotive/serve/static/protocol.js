@@ -1,12 +1,22 @@
-// The websocket protocol of `emotive serve` (docs/serve.md): the binary frame decoder and a
-// connection that sends control messages, matches replies to requests by "ref", and measures
-// the round-trip latency with ping/pong.
+// The websocket protocol of `emotive serve` (docs/serve.md): the binary frame decoder (both
+// layouts: version 2, "EMF2", compact, which this app asks for; version 1, "EMF1", float32
+// with world positions) and a connection that sends control messages, matches replies to
+// requests by "ref", and measures the round-trip latency with ping/pong.
 //
 // Legend: B agents in a frame, J joints of the rig, P points per agent (joints then end
 // sites), C emotion labels.
 
 const MAGIC = "EMF1";
+const MAGIC_V2 = "EMF2";
 const HEADER_BYTES = 32;
+// The frame layout this app asks for (?encoding= of the websocket).
+export const ENCODING = 2;
+// Version 2 stores each rotation's three smallest components in 15 bits: code 16383 + 16383
+// sqrt(2) v for v in [-1/sqrt(2), 1/sqrt(2)].
+const CODE_HALF = 16383;
+const CODE_SCALE = Math.SQRT1_2 / CODE_HALF;
+// Typed-array views read the platform's byte order; frames are little-endian.
+const LITTLE_ENDIAN = new Uint8Array(new Uint16Array([1]).buffer)[0] === 1;
 
 function floats(view, offset, count) {
   const out = new Float32Array(count);
@@ -14,22 +24,27 @@ function floats(view, offset, count) {
   return out;
 }
 
+const pad4 = (n) => n + ((4 - (n % 4)) % 4);
+
 /**
- * Decode one binary frame (little-endian, every block 4-byte aligned).
+ * Decode one binary frame of either layout (little-endian, every block 4-byte aligned).
  *
  * @param {ArrayBuffer} buffer the websocket message.
- * @returns {{frame: number, time: number, B: number, J: number, P: number, C: number,
- *   ids: Int32Array, va: Float32Array, weights: Float32Array, mover: Float32Array,
- *   rotations: Float32Array, points: Float32Array}} flat arrays: `va` (B, 2), `weights`
+ * @param {import("./rig.js").Rig} [rig] the rig of /api/skeleton: version-2 frames carry no
+ *   world positions, so `points` is computed from the rotations with it (null without).
+ * @returns {{version: number, frame: number, time: number, B: number, J: number, P: number,
+ *   C: number, ids: Int32Array, va: Float32Array, weights: Float32Array, mover: Float32Array,
+ *   rotations: Float32Array, points: Float32Array|null}} flat arrays: `va` (B, 2), `weights`
  *   (B, C), `mover` (B, 3) metres, `rotations` (B, J, 4) quaternions w, x, y, z, `points`
  *   (B, P, 3) metres.
  * @throws {Error} when the magic or the length does not match the layout.
  */
-export function decodeFrame(buffer) {
+export function decodeFrame(buffer, rig = null) {
   const view = new DataView(buffer);
   if (buffer.byteLength < HEADER_BYTES) throw new Error(`frame of ${buffer.byteLength} bytes`);
   const magic = String.fromCharCode(...new Uint8Array(buffer, 0, 4));
-  if (magic !== MAGIC) throw new Error(`frame magic ${JSON.stringify(magic)}, not ${MAGIC}`);
+  if (magic === MAGIC_V2) return decodeCompact(buffer, view, rig);
+  if (magic !== MAGIC) throw new Error(`frame magic ${JSON.stringify(magic)}, not ${MAGIC_V2} or ${MAGIC}`);
   const frame = view.getUint32(4, true);
   const time = view.getFloat64(8, true);
   const B = view.getUint32(16, true);
@@ -50,25 +65,71 @@ export function decodeFrame(buffer) {
     blocks[name] = floats(view, offset, B * size);
     offset += 4 * B * size;
   }
-  return { frame, time, B, J, P, C, ids, ...blocks };
+  return { version: 1, frame, time, B, J, P, C, ids, ...blocks };
 }
 
-/** The websocket URL of the server this page came from, with the page's token. */
-export function socketUrl(token) {
+/** Version 2 (docs/serve.md): quantized rotations, emotions and valence/arousal. */
+function decodeCompact(buffer, view, rig) {
+  if (!LITTLE_ENDIAN) throw new Error("version-2 frames need a little-endian platform");
+  const frame = view.getUint32(4, true);
+  const time = view.getFloat64(8, true);
+  const B = view.getUint32(16, true);
+  const J = view.getUint32(20, true);
+  const C = view.getUint32(24, true);
+  const expected = HEADER_BYTES + 20 * B + pad4(6 * B * J) + pad4(B * C);
+  if (buffer.byteLength !== expected) {
+    throw new Error(`frame of ${buffer.byteLength} bytes, layout needs ${expected}`);
+  }
+  let offset = HEADER_BYTES;
+  const ids = new Int32Array(buffer.slice(offset, offset + 4 * B));
+  offset += 4 * B;
+  const mover = new Float32Array(buffer.slice(offset, offset + 12 * B));
+  offset += 12 * B;
+  const codes = new Uint16Array(buffer, offset, 3 * B * J);
+  offset += pad4(6 * B * J);
+  const rotations = new Float32Array(4 * B * J);
+  for (let k = 0; k < B * J; k++) {
+    const a = codes[3 * k];
+    const b = codes[3 * k + 1];
+    const largest = ((a >> 15) << 1) | (b >> 15);
+    const x = ((a & 0x7fff) - CODE_HALF) * CODE_SCALE;
+    const y = ((b & 0x7fff) - CODE_HALF) * CODE_SCALE;
+    const z = ((codes[3 * k + 2] & 0x7fff) - CODE_HALF) * CODE_SCALE;
+    const implied = Math.sqrt(Math.max(0, 1 - x * x - y * y - z * z));
+    // The three stored components fill the other slots, in w, x, y, z order.
+    const q = 4 * k;
+    rotations[q + largest] = implied;
+    rotations[q + (largest === 0 ? 1 : 0)] = x;
+    rotations[q + (largest <= 1 ? 2 : 1)] = y;
+    rotations[q + (largest <= 2 ? 3 : 2)] = z;
+  }
+  const va = Float32Array.from(new Int16Array(buffer, offset, 2 * B), (v) => v / 32767);
+  offset += 4 * B;
+  const weights = Float32Array.from(new Uint8Array(buffer, offset, B * C), (v) => v / 255);
+  const points = rig ? rig.poseAll(rotations, mover, B) : null;
+  return { version: 2, frame, time, B, J, P: rig ? rig.P : 0, C, ids, va, weights, mover,
+           rotations, points };
+}
+
+/** The websocket URL of the server this page came from, with the page's token and layout. */
+export function socketUrl(token, encoding = ENCODING) {
   const scheme = location.protocol === "https:" ? "wss:" : "ws:";
-  const query = token ? `?token=${encodeURIComponent(token)}` : "";
-  return `${scheme}//${location.host}/ws${query}`;
+  const query = new URLSearchParams({ encoding: String(encoding) });
+  if (token) query.set("token", token);
+  return `${scheme}//${location.host}/ws?${query}`;
 }
 
 /**
  * A websocket connection to the server.
  *
  * Callbacks: `onFrame(frame)` for each decoded frame, `onError(text)` for error replies and
- * undecodable frames, `onOpen()` once it is open, `onClose(code)` when it closes.
+ * undecodable frames, `onOpen()` once it is open, `onClose(code)` when it closes. `rig`
+ * (a Rig of /api/skeleton) gives version-2 frames their world positions.
  */
 export class Connection {
-  constructor(url, { onFrame, onError, onOpen, onClose }) {
+  constructor(url, { onFrame, onError, onOpen, onClose, rig = null }) {
     this.url = url;
+    this.rig = rig;
     this.onFrame = onFrame;
     this.onError = onError;
     this.onOpen = onOpen;
@@ -103,7 +164,7 @@ export class Connection {
     if (data instanceof ArrayBuffer) {
       let frame;
       try {
-        frame = decodeFrame(data);
+        frame = decodeFrame(data, this.rig);
       } catch (err) {
         this.onError(`bad frame: ${err.message}`);
         return;
