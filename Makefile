@@ -33,9 +33,13 @@ $(GLTFJS)/node_modules/.package-lock.json: $(GLTFJS)/package-lock.json
 lint: install
 	$(BIN)/ruff check src tests bench
 
+# Test processes (pytest-xdist): two, the cores of the CI machine; the suite's servers bind
+# free loopback ports and its files live in per-test folders, so the processes never meet.
+TEST_WORKERS ?= 2
+
 test: install lint $(THREEJS)/node_modules/.package-lock.json \
 		$(GLTFJS)/node_modules/.package-lock.json
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest -n $(TEST_WORKERS)
 
 # The suite as on a shared 2-core machine with two other jobs running.
 test-stress:

@@ -12,7 +12,7 @@ from emotive.data.circumplex import VALENCE_AROUSAL
 from emotive.errors import ConfigError
 from emotive.eval.classifier import ClassifierConfig, EmotionClassifier
 from emotive.eval.classifier_training import (
-    _Sampler,
+    WindowSampler,
     load_tracks,
     measure,
     read_config,
@@ -74,7 +74,7 @@ def test_quick_training_calibrates_and_sets_the_unsure_distance(quick, data, tmp
         assert 0.0 <= result["unsure_rate"] <= 1.0
     assert set(model.metrics["test_by_dataset"]) == {"bandai-namco-1"}
     # About 1 % of fresh training windows lie beyond the 99th-percentile distance.
-    sampler = _Sampler(data["train"], quick)
+    sampler = WindowSampler(data["train"], quick)
     rng = np.random.default_rng(5)
     unsure = [model.outputs(sampler.draw(rng, 16)[0])["unsure"] for _ in range(150)]
     assert 0.0 < np.concatenate(unsure).mean() < 0.05
@@ -85,7 +85,7 @@ def test_quick_training_calibrates_and_sets_the_unsure_distance(quick, data, tmp
 
 @pytest.mark.data
 def test_the_sampler_balances_styles_and_labels(quick, data):
-    sampler = _Sampler(data["train"], quick)
+    sampler = WindowSampler(data["train"], quick)
     # 0.8 to 4 s at 15 fps.
     assert list(sampler.lengths) == [12, 24, 36, 48, 60]
     rng = np.random.default_rng(0)

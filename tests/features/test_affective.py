@@ -16,6 +16,7 @@ from emotive.features.affective import (
     AFFECTIVE_FEATURE_NAMES,
     AFFECTIVE_ROLES,
     affective_features,
+    affective_features_batch_last,
     affective_features_np,
 )
 
@@ -217,3 +218,13 @@ def test_real_walk_is_finite_and_plausible(walk_dir):
     knee = f[:, names.index("l_knee_angle")]
     assert knee.max() > 3.0 and knee.min() < 2.2
     assert np.ptp(f[:, names.index("toes_angle_at_root")]) > 0.4
+
+
+def test_batch_last_features_equal_the_poses_first_ones():
+    rng = np.random.default_rng(3)
+    roles = {name: k + 2 for k, name in enumerate(AFFECTIVE_ROLES)}
+    points = torch.from_numpy(rng.normal(size=(6, R + 4, 3)))
+    expected = affective_features(points, roles)
+    got = affective_features_batch_last(points.permute(1, 2, 0).contiguous(), roles)
+    assert got.shape == (len(AFFECTIVE_FEATURE_NAMES), 6)
+    torch.testing.assert_close(got.T, expected)

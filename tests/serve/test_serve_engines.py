@@ -27,6 +27,14 @@ async def _two_agents(url: str):
         return ids, frames
 
 
+def test_the_onnx_backend_runs_the_whole_exported_step_and_torch_is_traced_ahead():
+    step_runtime = pytest.importorskip("emotive.models.gait.step_runtime")
+    onnx = load_engine("gait", "onnx")
+    assert isinstance(onnx.generator._step_fn, step_runtime.OnnxAgentStep)
+    torch_engine = load_engine("gait", "torch")
+    assert set(torch_engine.generator._traces) == {False, True}
+
+
 def test_empty_scene_steps_without_the_model():
     engine = load_engine()
     frame = engine.step()
@@ -40,7 +48,7 @@ def test_empty_scene_steps_without_the_model():
 ])
 def test_optional_engines_stream(settings, model, backend):
     pytest.importorskip(
-        "emotive.models.fcrbm.stream" if model == "fcrbm" else "emotive.models.gait.onnx_runtime")
+        "emotive.models.fcrbm.stream" if model == "fcrbm" else "emotive.models.gait.step_runtime")
     with running_server(**settings) as url:
         health = httpx.get(f"{url}/api/health").json()
         sk = httpx.get(f"{url}/api/skeleton").json()

@@ -133,3 +133,17 @@ def test_pose_fk_matches_the_joint_loop_and_places_end_sites():
     expected = quaternion_apply(grot[:, ends], end_offsets) + gpos[:, ends]
     torch.testing.assert_close(got[:, len(TREE):], expected)
     assert PoseFK(CHAIN, np.zeros((3, 3)), dtype=DT)(q[:, :3]).shape == (5, 3, 3)
+
+
+def test_pose_fk_batch_last_is_the_same_points_with_the_poses_last():
+    from emotive.transforms.kinematics import PoseFK
+
+    g = torch.Generator().manual_seed(5)
+    offsets = torch.randn(len(TREE), 3, generator=g, dtype=DT)
+    q = quaternion_normalize(torch.randn(7, len(TREE), 4, generator=g, dtype=DT))
+    fk = PoseFK(TREE, offsets.numpy(), [3, 6], torch.randn(2, 3, generator=g, dtype=DT).numpy(),
+                dtype=DT)
+    last = fk.batch_last(q.permute(1, 2, 0).contiguous())
+    assert last.shape == (len(TREE) + 2, 3, 7)
+    torch.testing.assert_close(last.permute(2, 0, 1), fk(q))
+    np.testing.assert_allclose(last.permute(2, 0, 1).numpy(), fk(q.numpy()), atol=1e-12)

@@ -466,3 +466,39 @@ def test_quaternion_mean_along_an_axis():
     q[0, 2, 1] = np.nan
     mean = npr.quaternion_mean(q, axis=0)
     assert np.isnan(mean[2]).all() and np.isfinite(np.delete(mean, 2, 0)).all()
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.integers(0, 2**31 - 1), st.integers(1, 6))
+def test_batch_last_products_equal_the_components_last_ones(seed, batch):
+    g = torch.Generator().manual_seed(seed)
+    a = torch.randn(3, batch, 4, generator=g, dtype=torch.float64)
+    b = torch.randn(1, batch, 4, generator=g, dtype=torch.float64)
+    v = torch.randn(3, batch, 3, generator=g, dtype=torch.float64)
+    aw, ax, ay, az = a.unbind(-1)
+    bw, bx, by, bz = b.unbind(-1)
+    hamilton = torch.stack((aw * bw - ax * bx - ay * by - az * bz,
+                            aw * bx + ax * bw + ay * bz - az * by,
+                            aw * by - ax * bz + ay * bw + az * bx,
+                            aw * bz + ax * by - ay * bx + az * bw), -1)
+    torch.testing.assert_close(r.quaternion_multiply(a, b), hamilton)
+    last = r.quaternion_multiply(a.transpose(-1, -2), b.transpose(-1, -2), -2)
+    torch.testing.assert_close(last.transpose(-1, -2), hamilton)
+    u = a[..., 1:]
+    torch.testing.assert_close(r.cross_product(u, v), torch.linalg.cross(u, v))
+    torch.testing.assert_close(
+        r.cross_product(u.transpose(-1, -2), v.transpose(-1, -2), -2).transpose(-1, -2),
+        torch.linalg.cross(u, v))
+    q = r.quaternion_normalize(a)
+    torch.testing.assert_close(r.quaternion_rotate(q, v), r.quaternion_apply(q, v))
+    torch.testing.assert_close(
+        r.quaternion_rotate(q.transpose(-1, -2), v.transpose(-1, -2), -2).transpose(-1, -2),
+        r.quaternion_apply(q, v))
+
+
+def test_quaternion_multiply_takes_the_components_last_or_second_last_only():
+    q = torch.tensor([[1.0, 0.0, 0.0, 0.0]])
+    with pytest.raises(ValueError, match="dim must be -1 or -2"):
+        r.quaternion_multiply(q, q, 0)
+    with pytest.raises(ValueError, match=r"a must have shape \(\.\.\., 4, B\)"):
+        r.quaternion_multiply(q, q.T, -2)

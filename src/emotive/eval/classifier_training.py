@@ -283,7 +283,7 @@ def measure(model: EmotionClassifier, items: Sequence[ClipFeatures]) -> dict:
     }
 
 
-class _Sampler:
+class WindowSampler:
     """Windows drawn from clips, every (data set, style) group equally likely."""
 
     def __init__(self, items: Sequence[ClipFeatures], config: ClassifierConfig) -> None:
@@ -317,13 +317,14 @@ class _Sampler:
                 np.stack([i.valence_arousal for i in chosen]))
 
 
-def _score(result: dict) -> float:
+def selection_score(result: dict) -> float:
+    """The score that picks the best epoch: mean of the emotion and style balanced accuracies."""
     parts = [v for v in (result["balanced_accuracy"], result["style_balanced_accuracy"])
              if not math.isnan(v)]
     return float(np.mean(parts)) if parts else 0.0
 
 
-def _training_embeddings(model: EmotionClassifier, sampler: _Sampler,
+def _training_embeddings(model: EmotionClassifier, sampler: WindowSampler,
                          rng: np.random.Generator) -> np.ndarray:
     """``(N, E)`` embeddings of :data:`UNSURE_FIT_WINDOWS` training windows of every length."""
     batches = math.ceil(UNSURE_FIT_WINDOWS / model.config.batch_size)
@@ -332,7 +333,7 @@ def _training_embeddings(model: EmotionClassifier, sampler: _Sampler,
         for _ in range(batches)]).astype(np.float64)
 
 
-def _fit_unsure(model: EmotionClassifier, sampler: _Sampler, rng: np.random.Generator) -> None:
+def fit_unsure(model: EmotionClassifier, sampler: WindowSampler, rng: np.random.Generator) -> None:
     """Embedding mean and precision of training windows; the distance at the quantile.
 
     The quantile is taken over fresh training windows (other draws than the fit's), batch by
@@ -360,7 +361,7 @@ def _calibration_windows(item: ClipFeatures, config: ClassifierConfig) -> list[n
     return out
 
 
-def _calibrate(model: EmotionClassifier, items: Sequence[ClipFeatures]) -> None:
+def calibrate_temperature(model: EmotionClassifier, items: Sequence[ClipFeatures]) -> None:
     """Fit the temperature on the labelled validation windows of every length (0.8-4 s).
 
     Short windows are where the network errs; 4 s windows alone are often all right on the
@@ -406,7 +407,7 @@ def train_classifier(config: ClassifierConfig | None = None, progress: bool = Fa
     std = np.maximum(frames.std(0), 1e-3).astype(np.float32)
     net = build_net(config)
     model = EmotionClassifier(config, net, mean, std)
-    sampler = _Sampler(data["train"], config)
+    sampler = WindowSampler(data["train"], config)
     label_loss = nn.CrossEntropyLoss(
         weight=torch.tensor(sampler.label_weight, dtype=torch.float32), ignore_index=-1)
     style_loss = nn.CrossEntropyLoss(ignore_index=-1)
@@ -438,8 +439,8 @@ def train_classifier(config: ClassifierConfig | None = None, progress: bool = Fa
         return model
     net.load_state_dict(best_state)
     net.eval()
-    _calibrate(model, data["val"])
-    _fit_unsure(model, sampler, rng)
+    calibrate_temperature(model, data["val"])
+    fit_unsure(model, sampler, rng)
     model.metrics = {split: measure(model, data[split]) for split in ("val", "test")}
     model.metrics["test_by_dataset"] = {
         d: measure(model, [i for i in data["test"] if i.dataset == d]) for d in config.datasets
@@ -447,10 +448,10 @@ def train_classifier(config: ClassifierConfig | None = None, progress: bool = Fa
     return model
 
 
-def _train_epoch(model: EmotionClassifier, sampler: _Sampler, val: Sequence[ClipFeatures],
+def _train_epoch(model: EmotionClassifier, sampler: WindowSampler, val: Sequence[ClipFeatures],
                  opt: torch.optim.Optimizer, losses: tuple[nn.Module, nn.Module],
                  rng: np.random.Generator, batch_done: Callable[[], None]) -> float:
-    """One epoch of updates, then the validation score (:func:`_score`; 0 without clips)."""
+    """One epoch of updates, then the validation score (0 without clips)."""
     config, net, mean, std = model.config, model.net, model.mean, model.std
     label_loss, style_loss, world = *losses, current_world()
     net.train()
@@ -471,7 +472,7 @@ def _train_epoch(model: EmotionClassifier, sampler: _Sampler, val: Sequence[Clip
         opt.step()
         batch_done()
     net.eval()
-    return _score(measure(model, val)) if val and world.is_main else 0.0
+    return selection_score(measure(model, val)) if val and world.is_main else 0.0
 
 
 def train_on_one_studio(config: ClassifierConfig, data: dict[str, list[ClipFeatures]],

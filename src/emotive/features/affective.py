@@ -30,6 +30,7 @@ import torch
 from emotive.core.roles import JointRoles
 from emotive.errors import RigError
 from emotive.transforms.numpy_bridge import numpy_kernel
+from emotive.transforms.rotations import cross_product
 
 #: Roles the features use, in the order the kernel expects along the ``R`` axis.
 AFFECTIVE_ROLES: tuple[str, ...] = (
@@ -86,21 +87,23 @@ def _columns(kind: str) -> tuple[list[int], list[list[int]]]:
     return cols, [[AFFECTIVE_ROLES.index(r) for r in slot] for slot in slots]
 
 
-def _safe_norm(x: torch.Tensor, eps: float) -> torch.Tensor:
-    return torch.sqrt((x * x).sum(-1) + eps * eps)
+def _safe_norm(x: torch.Tensor, eps: float, dim: int = -1) -> torch.Tensor:
+    return torch.sqrt((x * x).sum(dim) + eps * eps)
 
 
-def _angle(a: torch.Tensor, b: torch.Tensor, c: torch.Tensor, eps: float) -> torch.Tensor:
+def _angle(a: torch.Tensor, b: torch.Tensor, c: torch.Tensor, eps: float,
+           dim: int = -1) -> torch.Tensor:
     u = a - b
     v = c - b
-    u = u / _safe_norm(u, eps)[..., None]
-    v = v / _safe_norm(v, eps)[..., None]
-    sin = _safe_norm(torch.linalg.cross(u, v), _ANGLE_EPS)
-    return torch.atan2(sin, (u * v).sum(-1))
+    u = u / _safe_norm(u, eps, dim).unsqueeze(dim)
+    v = v / _safe_norm(v, eps, dim).unsqueeze(dim)
+    sin = _safe_norm(cross_product(u, v, dim), _ANGLE_EPS, dim)
+    return torch.atan2(sin, (u * v).sum(dim))
 
 
-def _double_area(a: torch.Tensor, b: torch.Tensor, c: torch.Tensor, eps: float) -> torch.Tensor:
-    return _safe_norm(torch.linalg.cross(b - a, c - a), eps * eps)
+def _double_area(a: torch.Tensor, b: torch.Tensor, c: torch.Tensor, eps: float,
+                 dim: int = -1) -> torch.Tensor:
+    return _safe_norm(cross_product(b - a, c - a, dim), eps * eps, dim)
 
 
 def role_indices(
@@ -155,23 +158,56 @@ def affective_features(
             f"positions must have shape (..., {len(AFFECTIVE_ROLES)}, 3) in AFFECTIVE_ROLES "
             f"order, or pass roles; got {tuple(positions.shape)}"
         )
-    p = positions
+    return _features(positions, -2, eps)
+
+
+def affective_features_batch_last(points: torch.Tensor, roles: JointRoles | Mapping[str, int],
+                                  eps: float = DEFAULT_EPS) -> torch.Tensor:
+    """:func:`affective_features` of points given with the poses last.
+
+    With the poses last every operation runs over long contiguous rows (the per-frame step
+    of many agents).
+
+    Args:
+        points: ``(J + E, 3, B)`` positions of joints then end sites.
+        roles: as in :func:`affective_features`.
+        eps: length floor.
+
+    Returns:
+        ``(18, B)`` features, in the order of :data:`AFFECTIVE_FEATURE_NAMES`.
+    """
+    return _features(points, 0, eps, role_indices(roles))
+
+
+def _index(values: list[int], like: torch.Tensor) -> torch.Tensor:
+    return torch.as_tensor(values, dtype=torch.long, device=like.device)
+
+
+def _features(p: torch.Tensor, axis: int, eps: float,
+              lookup: list[int] | None = None) -> torch.Tensor:
+    """The features of points along ``axis``, the roles at ``lookup`` (default: in order).
+
+    ``axis`` is ``-2`` for ``(..., R, 3)`` (features ``(..., 18)``) or ``0`` for ``(R, 3, B)``
+    (features ``(18, B)``); the components lie next to it.
+    """
+    dim = -1 if axis == -2 else 1
+    out = -1 if axis == -2 else 0
+    lookup = list(range(len(AFFECTIVE_ROLES))) if lookup is None else lookup
 
     def pts(slot: list[int]) -> torch.Tensor:
-        return p.index_select(-2, torch.as_tensor(slot, device=p.device))
+        return p.index_select(axis, _index([lookup[r] for r in slot], p))
 
     groups = []
     cols_a, (a, b, c) = _columns("angle")
-    groups.append(_angle(pts(a), pts(b), pts(c), eps))
+    groups.append(_angle(pts(a), pts(b), pts(c), eps, dim))
     cols_d, (a, b, c, d) = _columns("distance_ratio")
-    groups.append(_safe_norm(pts(a) - pts(b), eps) / _safe_norm(pts(c) - pts(d), eps))
+    groups.append(_safe_norm(pts(a) - pts(b), eps, dim) / _safe_norm(pts(c) - pts(d), eps, dim))
     cols_r, (a, b, c, d, e, f) = _columns("area_ratio")
-    groups.append(
-        _double_area(pts(a), pts(b), pts(c), eps) / _double_area(pts(d), pts(e), pts(f), eps)
-    )
+    groups.append(_double_area(pts(a), pts(b), pts(c), eps, dim)
+                  / _double_area(pts(d), pts(e), pts(f), eps, dim))
     # Back from kind-grouped columns to the table's order.
     order = np.argsort(cols_a + cols_d + cols_r).tolist()
-    return torch.cat(groups, -1)[..., order]
+    return torch.cat(groups, out).index_select(out, _index(order, p))
 
 
 _affective_features_np = numpy_kernel(affective_features)

@@ -1,7 +1,8 @@
 """One small adapter over the streaming generators the server can run.
 
 The gait network (:class:`~emotive.models.gait.generate.GaitGenerator`, on torch or, with
-``backend="onnx"``, on ONNX Runtime through ``emotive.models.gait.onnx_runtime``) and the FCRBM
+``backend="onnx"``, the exported whole per-frame step on ONNX Runtime through
+``emotive.models.gait.step_runtime``) and the FCRBM
 (``emotive.models.fcrbm.stream.FCRBMStream``) share the methods the server calls; the
 :class:`Engine` adds what the server needs beside them (the rig, the mover joint, a standing
 pose for the mannequin) and steps an empty scene without calling the model. The ONNX and
@@ -30,7 +31,7 @@ from emotive.serve.errors import ServeError
 #: Module and class of the FCRBM's streaming generator.
 FCRBM_STREAM = "emotive.models.fcrbm.stream"
 #: Module and loader of the gait network's ONNX Runtime step.
-GAIT_ONNX = "emotive.models.gait.onnx_runtime"
+GAIT_ONNX = "emotive.models.gait.step_runtime"
 
 
 def _optional_module(name: str, option: str) -> Any:
@@ -117,11 +118,11 @@ class Engine:
 def _gait_engine(backend: str, seed: int) -> Engine:
     model = load_gait_model()
     c = model.controls
-    network = None
+    step = None
     if backend == "onnx":
-        network = _optional_module(GAIT_ONNX, "--backend onnx").load_onnx_network(model)
-    generator = (GaitGenerator(model, seed=seed) if network is None
-                 else GaitGenerator(model, seed=seed, network=network))
+        step = _optional_module(GAIT_ONNX, "--backend onnx").load_agent_step(model)
+    generator = GaitGenerator(model, seed=seed, step=step)
+    generator.prepare()  # the traces would otherwise fall in the first measured steps
     rest = Motion(c.skeleton, np.asarray(c.standing_rotations)[None],
                   np.asarray(c.standing_positions)[None], model.fps, {"name": "mannequin"})
     return Engine(generator, c.skeleton, c.mover, rest, "gait", backend,

@@ -63,7 +63,8 @@ class ServeSettings:
         token: shared secret every ``/api`` request and the websocket must present; ``None``
             for none (loopback only).
         model: ``"gait"`` (the main network) or ``"fcrbm"``.
-        backend: ``"torch"`` or ``"onnx"`` (the gait network's step on ONNX Runtime).
+        backend: ``"torch"`` or ``"onnx"`` (the gait agents' whole exported step,
+            ``emotive export onnx --step agent``, on ONNX Runtime).
         seed: seed of the agents' starting phases.
         workers: processes that step the scene's agents, each its share (1: the server's
             own simulation thread steps them all, in its process).

@@ -44,11 +44,11 @@ from emotive.eval.classifier import ClassifierConfig, EmotionClassifier
 from emotive.eval.classifier_nets import build_net
 from emotive.eval.classifier_training import (
     ClipFeatures,
-    _calibrate,
-    _fit_unsure,
-    _Sampler,
-    _score,
+    WindowSampler,
+    calibrate_temperature,
+    fit_unsure,
     measure,
+    selection_score,
 )
 from emotive.synth.classifier_data import SynthClip, SynthMix
 from emotive.synth.recipe import SynthError
@@ -66,7 +66,7 @@ class MixedSampler:
 
     def __init__(self, real: Sequence[ClipFeatures], synthetic: Sequence[SynthClip],
                  config: ClassifierConfig, mix: SynthMix) -> None:
-        self.real = _Sampler(real, config)
+        self.real = WindowSampler(real, config)
         self.synthetic = list(synthetic)
         self.share = mix.share if self.synthetic else 0.0
         self.hard = mix.target == "heaviest"
@@ -201,8 +201,8 @@ def train_mixed(config: ClassifierConfig, data: dict[str, list[ClipFeatures]],
     assert best_state is not None
     net.load_state_dict(best_state)
     net.eval()
-    _calibrate(model, data["val"])
-    _fit_unsure(model, sampler, rng)
+    calibrate_temperature(model, data["val"])
+    fit_unsure(model, sampler, rng)
     model.metrics = {split: measure(model, data[split]) for split in ("val", "test")}
     model.metrics["test_by_dataset"] = {
         d: measure(model, [i for i in data["test"] if i.dataset == d]) for d in config.datasets
@@ -242,4 +242,4 @@ def _epoch(model: EmotionClassifier, sampler: MixedSampler, val: Sequence[ClipFe
         opt.step()
         step_done()
     net.eval()
-    return _score(measure(model, val)) if val else 0.0
+    return selection_score(measure(model, val)) if val else 0.0

@@ -150,22 +150,37 @@ class PoseFK:
             np.array(end_site_parents, dtype=np.int64),
             ends.reshape(-1, 1, 3, 1).astype(np.float64),
         )
-        self._torch = _Tree(
-            [torch.as_tensor(level) for level in levels],
-            [torch.as_tensor(p) for p in self._numpy.parents],
-            [torch.as_tensor(o, dtype=dtype) for o in self._numpy.offsets],
-            torch.as_tensor(self._numpy.end_parents),
-            torch.as_tensor(self._numpy.end_offsets, dtype=dtype),
-        )
-        # The torch path composes level by level into tensors that only grow (levels in
-        # order, then one permutation): no in-place writes, so it traces into ONNX.
+        self._levels = [torch.as_tensor(level) for level in levels]
+        # The torch path composes world rotations level by level into a tensor that only
+        # grows (levels in order: no in-place writes, so it traces into ONNX), then rotates
+        # every bone offset at once and sums the bones from the root to each point with one
+        # product by the constant ancestor matrix.
         order = [int(j) for level in levels for j in level]
         at = {j: k for k, j in enumerate(order)}
         self._grown = [None if p[0] < 0 else torch.as_tensor([at[int(j)] for j in p])
                        for p in self._numpy.parents]
-        self._grown_ends = torch.as_tensor([at[int(j)] for j in self._numpy.end_parents],
-                                           dtype=torch.long)
-        self._grown_order = torch.as_tensor(np.argsort(order))
+        bones = [j for j in range(self.num_joints) if parents[j] >= 0]
+        ends_parents = [int(p) for p in self._numpy.end_parents]
+        points = self.num_joints + len(ends_parents)
+        self._bone_parent = torch.as_tensor([at[int(parents[j])] for j in bones] +
+                                            [at[p] for p in ends_parents], dtype=torch.long)
+        self._bone_offset = torch.as_tensor(np.concatenate(
+            (np.asarray(offsets, dtype=np.float64)[bones], ends), 0)[:, :, None], dtype=dtype)
+        ancestors = np.zeros((points, len(bones) + len(ends_parents)))
+        root_offset = np.zeros((points, 3))
+        column_of = {j: n for n, j in enumerate(bones)}
+        chain_parent = list(parents) + ends_parents
+        for p in range(points):
+            j = p
+            if p >= self.num_joints:
+                ancestors[p, len(bones) + p - self.num_joints] = 1.0
+                j = chain_parent[p]
+            while parents[j] >= 0:
+                ancestors[p, column_of[j]] = 1.0
+                j = parents[j]
+            root_offset[p] = np.asarray(offsets, dtype=np.float64)[j]
+        self._ancestors = torch.as_tensor(ancestors, dtype=dtype)
+        self._root_offset = torch.as_tensor(root_offset[:, :, None], dtype=dtype)
 
     def __call__(self, rotations: torch.Tensor | np.ndarray) -> torch.Tensor | np.ndarray:
         """``(B, J + E, 3)`` world positions of ``(B, J, 4)`` local unit quaternions.
@@ -194,26 +209,28 @@ class PoseFK:
         return world_x[..., 0].swapaxes(0, 1)
 
     def _compose(self, rotations: torch.Tensor) -> torch.Tensor:
-        """The torch path of :meth:`__call__`: ``(B, J, 4)`` -> ``(B, J + E, 3)``.
+        """The torch path of :meth:`__call__`: ``(B, J, 4)`` -> ``(B, J + E, 3)``."""
+        rotations = rotations.to(self._ancestors.dtype).permute(1, 2, 0).contiguous()
+        return self.batch_last(rotations).permute(2, 0, 1)
 
-        Composed as quaternions (a product per level and the offsets rotated), which on
-        1,000 poses took two thirds of the time of matrices.
+    def batch_last(self, rotations: torch.Tensor) -> torch.Tensor:
+        """``(J + E, 3, B)`` points of ``(J, 4, B)`` rotations: the torch path, batch last.
+
+        ``rotations`` must be of the class's dtype. With the poses last every product runs
+        over long contiguous rows. World rotations are quaternion products per level; each
+        point is its root's offset plus the sum of its bones rotated by their parents'
+        world rotations (one matrix product over all points). On 1,000 poses this took 0.6
+        of the time, and a fifth of the operations, of composing positions level by level
+        with the poses first.
         """
-        tree = self._torch
-        local = rotations.transpose(0, 1)
-        world_q = world_x = local
-        for level, grown, offsets in zip(tree.levels, self._grown, tree.offsets, strict=True):
-            offsets = offsets[..., 0]
+        world_q = rotations
+        for level, grown in zip(self._levels, self._grown, strict=True):
             if grown is None:
-                world_q = local[level]
-                world_x = offsets.expand(-1, local.shape[1], -1)
+                world_q = rotations.index_select(0, level)
             else:
-                pq = world_q[grown]
-                world_q = torch.cat((world_q, quaternion_multiply(pq, local[level])), 0)
-                world_x = torch.cat((world_x, quaternion_rotate(pq, offsets) + world_x[grown]), 0)
-        points = world_x[self._grown_order]
-        if len(self._grown_ends):
-            ends = self._grown_ends
-            points = torch.cat((points, quaternion_rotate(world_q[ends], tree.end_offsets[..., 0])
-                                + world_x[ends]), 0)
-        return points.transpose(0, 1)
+                world_q = torch.cat((world_q, quaternion_multiply(
+                    world_q.index_select(0, grown), rotations.index_select(0, level), -2)), 0)
+        bones = quaternion_rotate(world_q.index_select(0, self._bone_parent),
+                                  self._bone_offset, -2)
+        points = self._ancestors @ bones.flatten(1)
+        return points.unflatten(1, (3, -1)) + self._root_offset

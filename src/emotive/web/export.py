@@ -5,8 +5,9 @@ The folder holds everything the page needs and nothing it must fetch elsewhere:
 ===========================  ==========================================================
 ``index.html``, ``*.js``     the page (:data:`PAGE`): the engine loop of ``docs/runtime.md``
                              on onnxruntime-web, the scene, the controls, the test hook
-``figures.js``, ...          the served app's renderer, emotion controls and WebXR
-                             buttons (:data:`SHARED`, copied from ``emotive/serve/static``)
+``scene-setup.js``, ...      the served app's view, figures, mouse input, cameras, panel,
+                             emotion controls and WebXR buttons (:data:`SHARED`, copied
+                             from ``emotive/serve/static``)
 ``vendor/three/``            three.js, as the served app vendors it
 ``vendor/onnxruntime-web/``  onnxruntime-web's WebAssembly build, its licence and notices
 ``agent.onnx``               the whole agent step (:func:`export_agent_step`)
@@ -49,8 +50,9 @@ PAGE = Path(__file__).with_name("static")
 #: The served app's folder, whose renderer the page reuses.
 SERVE_STATIC = Path(__file__).parents[1] / "serve" / "static"
 #: Files and folders of :data:`SERVE_STATIC` copied unchanged into the export.
-SHARED: tuple[str, ...] = ("app.css", "figures.js", "emotion-controls.js", "xr.js",
-                           "vendor/three")
+SHARED: tuple[str, ...] = ("app.css", "scene-setup.js", "ground-input.js", "agent-figures.js",
+                           "follow-camera.js", "panel.js", "figures.js", "emotion-controls.js",
+                           "xr.js", "vendor/three")
 #: The vendored runtime, inside :data:`PAGE`.
 RUNTIME = "vendor/onnxruntime-web"
 #: Names of the generated files.

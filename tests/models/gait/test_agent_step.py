@@ -217,3 +217,22 @@ def test_the_cached_export_is_made_once_and_reused(model, tmp_path, monkeypatch)
     stamp = os.stat(first.path).st_mtime_ns
     again = load_agent_step(model)
     assert again.path == first.path and os.stat(again.path).st_mtime_ns == stamp
+
+
+def test_the_traced_steps_walk_like_the_eager_step(model):
+    """The start and walking traces (made ahead by ``prepare``) give the eager step's poses."""
+    traced = GaitGenerator(model)
+    traced.prepare()
+    assert set(traced._traces) == {False, True}
+    assert all(trace is not None for trace in traced._traces.values())
+    worlds = []
+    for gen in (traced, GaitGenerator(model, traced=False)):
+        a = gen.add_agents([figure8(), circle(2.0)], ["happy", "sad=0.6,angry=0.4"],
+                           seeds=[0, 1])
+        walk = [gen.step().world for _ in range(60)]
+        gen.set_emotion(a[0], "angry")
+        gen.add_agent(line(10.0), "neutral")  # a start call among walking agents
+        walk += [gen.step().world[:2] for _ in range(60)]
+        worlds.append(np.stack(walk))
+    gap = np.linalg.norm(worlds[0] - worlds[1], axis=-1)
+    assert gap.max() < 1e-4, f"max joint gap {gap.max():.2e} m"

@@ -20,6 +20,7 @@ import torch
 from emotive.features.affective import (
     AFFECTIVE_FEATURE_KINDS,
     affective_features,
+    affective_features_batch_last,
     affective_features_np,
 )
 
@@ -45,6 +46,14 @@ def gait_affective(positions: torch.Tensor, roles) -> torch.Tensor:
     differentiable).
     """
     return log_ratios(affective_features(positions, roles))
+
+
+def gait_affective_batch_last(points: torch.Tensor, roles) -> torch.Tensor:
+    """``(18, B)`` network affective features of ``(J + E, 3, B)`` points, agents last."""
+    features = affective_features_batch_last(points, roles)
+    ratio = torch.zeros(features.shape[0], 1, dtype=torch.bool, device=features.device)
+    ratio[list(RATIO_COLUMNS)] = True
+    return torch.where(ratio, torch.log(features.clamp_min(RATIO_FLOOR)), features)
 
 
 def gait_affective_np(positions: np.ndarray, roles) -> np.ndarray:

@@ -174,10 +174,12 @@ class GaitGenerator:
         step: the whole step to call instead of :class:`AgentStep` (same arguments and
             :class:`~emotive.models.gait.step_graph.StepOutputs`, torch tensors), e.g. the
             exported graph on ONNX Runtime (:mod:`~emotive.models.gait.step_runtime`).
-        traced: run the torch step as TorchScript, traced at the first step
-            (:meth:`AgentStep.traced <emotive.models.gait.step_graph.AgentStep.traced>`;
-            the same numbers, less interpreter time); ``False`` runs it eagerly. Ignored
-            with ``network`` or ``step``.
+        traced: run the torch step as TorchScript, traced at its first use: once for
+            calls that start agents and once for walking calls, which leave the start
+            selections out (:meth:`AgentStep.traced
+            <emotive.models.gait.step_graph.AgentStep.traced>`; the same numbers, less
+            interpreter time); ``False`` runs it eagerly. Ignored with ``network`` or
+            ``step``.
 
     Example::
 
@@ -200,7 +202,9 @@ class GaitGenerator:
         self.graph = AgentStep(model, dtype, foot_lock=foot_lock, network=network)
         self.network = self.graph.network
         self._step_fn = self.graph if step is None else step
-        self._trace_pending = bool(traced) and step is None and network is None
+        # Traced lazily, once for calls that start agents and once for walking calls only.
+        self._traces: dict[bool, Any] = {} if (traced and step is None and network is None) \
+            else {False: None, True: None}
         self.labels = model.labels
         self.fps = model.fps
         self._offsets = self.graph.sampling.offsets()
@@ -459,16 +463,28 @@ class GaitGenerator:
         def t(x: np.ndarray) -> torch.Tensor:
             return torch.as_tensor(np.asarray(x), dtype=self.dtype)
 
-        if self._trace_pending:
-            self._trace_pending = False
+        trace = self._trace(walking=not bool(np.any(start)))
+        step = self._step_fn if trace is None else (lambda *a: StepOutputs(*trace(*a)))
+        return step(batch.state, rows, t(batch.emotion), t(batch.pace),
+                    t(to_agent_frame(points, xz, heading)), t(left), t(start), t(phase))
+
+    def prepare(self) -> None:
+        """Trace the torch step now rather than at its first use (about half a second).
+
+        For a host that times its frames (a live server): the traces then do not fall in a
+        frame. Nothing to do when the step runs eagerly or is not the torch step.
+        """
+        self._trace(walking=False)
+        self._trace(walking=True)
+
+    def _trace(self, walking: bool) -> Any:
+        """The traced step for start calls or walking calls (``None``: step eagerly)."""
+        if walking not in self._traces:
             try:
-                traced = self.graph.traced(LOOP_LEFT)
+                self._traces[walking] = self.graph.traced(LOOP_LEFT, walking=walking)
             except (AttributeError, RuntimeError):  # a torch without TorchScript tracing
-                traced = None
-            if traced is not None:
-                self._step_fn = lambda *args: StepOutputs(*traced(*args))
-        return self._step_fn(batch.state, rows, t(batch.emotion), t(batch.pace),
-                             t(to_agent_frame(points, xz, heading)), t(left), t(start), t(phase))
+                self._traces[walking] = None
+        return self._traces[walking]
 
     def _update_emotions(self) -> None:
         b = self._batch

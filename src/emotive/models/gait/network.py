@@ -185,7 +185,7 @@ class GaitNetwork(nn.Module):
         )
 
     def step(
-        self, inputs: GaitInputs, state: torch.Tensor | None = None
+        self, inputs: GaitInputs, state: torch.Tensor | None = None, normalize: bool = True
     ) -> tuple[GaitOutputs, torch.Tensor]:
         """Advance ``B`` agents by one frame.
 
@@ -193,6 +193,8 @@ class GaitNetwork(nn.Module):
             inputs: one frame, shapes as in :class:`GaitInputs` (no ``T`` axis).
             state: ``(L, B, H_3)`` GRU state from the previous call, or ``None`` for
                 :meth:`initial_state`.
+            normalize: ``False`` leaves the rotations unnormalized (``rotations`` is then
+                ``raw_rotations``), for a caller that normalizes them itself.
 
         Returns:
             The next frame's :class:`GaitOutputs` (``(B, J, 4)``, ``(B, J, 4)``, ``(B, 3)``)
@@ -204,7 +206,7 @@ class GaitNetwork(nn.Module):
         """
         (batch,) = self._check(inputs, sequence=False)
         seq = GaitInputs(*(None if x is None else x.unsqueeze(1) for x in inputs))
-        outputs, state = self._run(seq, batch, 1, state)
+        outputs, state = self._run(seq, batch, 1, state, normalize)
         return GaitOutputs(*(x.squeeze(1) for x in outputs)), state
 
     def forward(
@@ -235,7 +237,8 @@ class GaitNetwork(nn.Module):
         return self._run(inputs, batch, frames, state)
 
     def _run(
-        self, inputs: GaitInputs, batch: int, frames: int, state: torch.Tensor | None
+        self, inputs: GaitInputs, batch: int, frames: int, state: torch.Tensor | None,
+        normalize: bool = True,
     ) -> tuple[GaitOutputs, torch.Tensor]:
         """The network on ``(B, T, ...)`` inputs; shared by :meth:`step` and :meth:`forward`."""
         cfg = self.config
@@ -263,7 +266,8 @@ class GaitNetwork(nn.Module):
             (self.fc_h(r_latent), self.fc_s(r_latent), self.fc_delta(r_latent)), -1
         )
         root_next = root_next * self.root_std + self.root_mean
-        return GaitOutputs(quaternion_normalize(raw), raw, root_next), state
+        rotations = quaternion_normalize(raw) if normalize else raw
+        return GaitOutputs(rotations, raw, root_next), state
 
     def _check(self, inputs: GaitInputs, sequence: bool) -> tuple[int, ...]:
         """Validate shapes; return ``(B,)`` for a frame or ``(B, T)`` for a window."""

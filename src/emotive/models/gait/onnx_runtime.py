@@ -21,6 +21,7 @@ from __future__ import annotations
 import contextlib
 import json
 import tempfile
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -67,21 +68,40 @@ def read_onnx_metadata(path: str | Path) -> dict[str, str]:
             emotive; naming the file and the fix.
         OnnxUnavailableError: ``onnx`` is not installed.
     """
+    return read_file_metadata(path, FORMAT, META_KEYS, "gait step", "emotive export onnx")
+
+
+def read_file_metadata(path: str | Path, fmt: str, keys: Sequence[str], kind: str,
+                       command: str) -> dict[str, str]:
+    """The ``metadata_props`` of an emotive ONNX file of format ``fmt``, holding ``keys``.
+
+    Args:
+        path: the file.
+        fmt: the ``format`` value it must have.
+        keys: the keys it must hold.
+        kind: what the file is, for the messages (e.g. ``"gait step"``).
+        command: the command that writes it, without ``--out`` (the fix in the messages).
+
+    Raises:
+        ConfigError: the file is missing, not an ONNX model or not of that format; naming
+            the file and the fix.
+        OnnxUnavailableError: ``onnx`` is not installed.
+    """
     onnx = require("onnx")
     path = Path(path)
+    fix = f"export it again with `{command} --out {path}`"
     if not path.is_file():
-        raise ConfigError(f"{path}: no such ONNX file; write it with "
-                          f"`emotive export onnx --out {path}`")
+        raise ConfigError(f"{path}: no such ONNX file; write it with `{command} --out {path}`")
     try:
         proto = onnx.load(str(path), load_external_data=False)
     except Exception as exc:  # onnx raises DecodeError, ValueError, OSError, ... on bad files
         raise ConfigError(f"{path}: not a readable ONNX model ({type(exc).__name__}); "
-                          f"{_fix(path)}") from None
+                          f"{fix}") from None
     meta = {p.key: p.value for p in proto.metadata_props}
-    missing = [k for k in META_KEYS if k not in meta]
-    if meta.get("format") != FORMAT or missing:
-        raise ConfigError(f"{path}: not an emotive gait step file (format "
-                          f"{meta.get('format')!r}, missing {missing}); {_fix(path)}")
+    missing = [k for k in keys if k not in meta]
+    if meta.get("format") != fmt or missing:
+        raise ConfigError(f"{path}: not an emotive {kind} file (format "
+                          f"{meta.get('format')!r}, missing {missing}); {fix}")
     return meta
 
 

@@ -35,15 +35,15 @@ from torch import nn
 from emotive.core.roles import resolve_roles
 from emotive.features.movement import LOWPASS_HZ
 from emotive.ik.foot_lock import LockSettings, leg_index, leg_rig
-from emotive.ik.foot_lock_kernel import LockTensors, lock_step
-from emotive.models.gait.affect import gait_affective
+from emotive.ik.foot_lock_kernel import LockTensors, lock_batch_last
+from emotive.models.gait.affect import gait_affective, gait_affective_batch_last
 from emotive.models.gait.controls import MIN_TURN_FACTOR
 from emotive.models.gait.model import GaitModel
-from emotive.models.gait.network import GaitInputs, same_hemisphere
+from emotive.models.gait.network import GaitInputs, GaitNetwork
 from emotive.models.gait.step_layout import LOCK_FIELDS, AgentLayout
 from emotive.models.gait.step_path import PathSampling, path_at
 from emotive.transforms.kinematics import PoseFK
-from emotive.transforms.rotations import quaternion_multiply, yaw_quaternion
+from emotive.transforms.rotations import quaternion_multiply
 
 #: Network steps on the standing pose that start an agent (a GRU state from zeros).
 WARMUP_STEPS = 9
@@ -57,6 +57,8 @@ PATH_MERGE_SLOPE = 0.5
 #: Clamps of the predicted root features: height in metres, speed in metres per second.
 HEIGHT_RANGE = (-0.6, 0.4)
 MAX_SPEED = 8.0
+#: Calls that TorchScript's profiling executor makes before it runs an optimized graph.
+PROFILING_CALLS = 2
 #: Unlocked heel and toe positions written for a new agent (metres): so far from any foot
 #: that nothing plants on its first frame.
 NO_PREVIOUS_POSITION = 1e4
@@ -124,6 +126,7 @@ class AgentStep(nn.Module):
         self.turn_slowing = float(c.turn_slowing)
         self.alpha = 1.0 - math.exp(-2.0 * math.pi * LOWPASS_HZ / self.fps)
         self.use_affective = bool(self.network.config.use_affective)
+        self._walking_only = False
 
         def const(x: Any) -> torch.Tensor:
             return torch.as_tensor(x, dtype=dtype)
@@ -137,6 +140,7 @@ class AgentStep(nn.Module):
         standing = const(c.standing_rotations)
         standing_world = self.fk(standing[None])
         self.register_buffer("standing", standing)
+        self.register_buffer("standing_last", standing[:, :, None])
         self.register_buffer("standing_affective",
                              gait_affective(standing_world, self.roles)[0])
         self.standing_height = float(c.standing_height)
@@ -150,7 +154,10 @@ class AgentStep(nn.Module):
             j = int(sk.parents[j])
         keep = torch.ones(sk.num_joints, 1, dtype=dtype)
         keep[above] = 0.0
-        self.register_buffer("keep", keep)
+        identity = torch.tensor([1.0, 0.0, 0.0, 0.0], dtype=dtype)[:, None]
+        self.register_buffer("keep", keep[:, :, None])
+        self.register_buffer("identity", identity)
+        self.register_buffer("unkept", identity * (1.0 - keep[:, :, None]))
         # World height of the mover = base + h.
         self.base = float(c.standing_positions[self.mover, 1] - c.standing_height)
 
@@ -164,8 +171,12 @@ class AgentStep(nn.Module):
                 torch.full((batch,), path_left, dtype=d), torch.ones(batch, dtype=d),
                 torch.zeros(batch, dtype=d))
 
-    def traced(self, path_left: float) -> Any:
-        """This step as frozen TorchScript (traced once with every start selection in it).
+    def traced(self, path_left: float, walking: bool = False) -> Any:
+        """This step as frozen TorchScript.
+
+        Traced with every start selection in it, or, with ``walking``, without them: a
+        trace for calls whose agents all walk (``start = 0``), which must not be given a
+        start step.
 
         The same operations without the Python interpreter between them: on the development
         machine one agent's step took less than half the time, 1,000 agents' about 20 %
@@ -176,9 +187,18 @@ class AgentStep(nn.Module):
         with warnings.catch_warnings(), torch.no_grad():
             warnings.filterwarnings("ignore", category=torch.jit.TracerWarning)
             warnings.filterwarnings("ignore", category=DeprecationWarning)
-            trace = torch.jit.trace(self.eval(), self.example_inputs(path_left),
-                                    check_trace=False)
-            return torch.jit.freeze(trace)
+            self._walking_only = walking
+            try:
+                trace = torch.jit.trace(self.eval(), self.example_inputs(path_left),
+                                        check_trace=False)
+            finally:
+                self._walking_only = False
+            frozen = torch.jit.freeze(trace)
+            # TorchScript optimizes a graph over its first calls (tens of milliseconds
+            # each): make them here, not in a host's first frames.
+            for _ in range(PROFILING_CALLS):
+                frozen(*self.example_inputs(path_left, batch=1))
+            return frozen
 
     # ------------------------------------------------------------------------------ pieces
 
@@ -206,18 +226,50 @@ class AgentStep(nn.Module):
             The placed rotations ``(B, J, 4)``, the mover's position ``(B, 3)``, the world
             points ``(B, P, 3)`` and the canonical points ``(B, P, 3)``.
         """
-        canonical = self.fk(rot)
+        rotations, root, world, canonical = self._placed(
+            rot.permute(1, 2, 0).contiguous(), h, xz, heading)
+        return (rotations.permute(2, 0, 1), root, world.permute(2, 0, 1),
+                canonical.permute(2, 0, 1))
+
+    def _placed(self, rot: torch.Tensor, h: torch.Tensor, xz: torch.Tensor,
+                heading: torch.Tensor) -> tuple[torch.Tensor, ...]:
+        """:meth:`pose_world` with the agents last: ``(J, 4, B)`` and ``(P, 3, B)``.
+
+        Every arithmetic operation then runs over contiguous rows of the ``B`` agents.
+        """
+        canonical = self.fk.batch_last(rot)
         mv = self.mover
-        turned = quaternion_multiply(yaw_quaternion(heading), rot[:, mv])
-        rotations = torch.cat((rot[:, :mv], turned[:, None], rot[:, mv + 1:]), 1)
+        half = 0.5 * heading
+        zero = torch.zeros_like(half)
+        yaw = torch.stack((torch.cos(half), zero, torch.sin(half), zero), 0)
+        turned = quaternion_multiply(yaw, rot[mv], -2)
+        rotations = torch.cat((rot[:mv], turned[None], rot[mv + 1:]), 0)
         height = self.base + h
         root = torch.stack((xz[:, 0], height, xz[:, 1]), -1)
         lift = height - self.local[mv, 1]
-        c, s = torch.cos(heading)[:, None], torch.sin(heading)[:, None]
-        x, y, z = canonical.unbind(-1)
-        world = torch.stack((c * x + s * z + xz[:, :1], y + lift[:, None],
-                             -s * x + c * z + xz[:, 1:]), -1)
+        c, s = torch.cos(heading), torch.sin(heading)
+        x, y, z = canonical.unbind(1)
+        world = torch.stack((c * x + s * z + xz[:, 0], y + lift,
+                             -s * x + c * z + xz[:, 1]), 1)
         return rotations, root, world, canonical
+
+    def _next_rotations(self, raw: torch.Tensor, current: torch.Tensor, finite: torch.Tensor
+                        ) -> torch.Tensor:
+        """``(J, 4, B)`` the network's next rotations made safe to feed back.
+
+        Normalized (a zero quaternion becomes the identity), in the hemisphere of the
+        current rotations ``(J, 4, B)`` (the prediction may take either sign,
+        :func:`~emotive.models.gait.network.same_hemisphere`), the current ones kept where
+        an agent's prediction is not ``finite`` ``(B,)``, and the joints above the mover at
+        the identity.
+        """
+        # Products rather than selections with broadcast masks (several times faster in
+        # onnxruntime).
+        norm = torch.sqrt((raw * raw).sum(1, keepdim=True))
+        q = raw / norm.clamp_min(1e-12) + self.identity * (norm <= 1e-12).to(raw.dtype)
+        q = q * (1.0 - 2.0 * ((q * current).sum(1, keepdim=True) < 0).to(raw.dtype))
+        q = torch.where(finite, q, current)
+        return q * self.keep + self.unkept
 
     # ------------------------------------------------------------------------------ step
 
@@ -245,8 +297,8 @@ class AgentStep(nn.Module):
         starting = start > 0.5
         b = agent.shape[0]
         # Start steps take other values in a few places; eagerly, a frame without one skips
-        # those selections (an exported graph always makes them).
-        starts = torch.jit.is_tracing() or bool(starting.any())
+        # those selections (an exported graph always makes them; a walking trace never).
+        starts = not self._walking_only and (torch.jit.is_tracing() or bool(starting.any()))
 
         def sel(if_start: torch.Tensor | float, otherwise: torch.Tensor) -> torch.Tensor:
             if not starts:
@@ -272,14 +324,15 @@ class AgentStep(nn.Module):
         cur_aff = sel(self.standing_affective.expand(b, -1), f["affective"])
         inputs = GaitInputs(cur_rot, cur_aff if self.use_affective else None, emotion,
                             movement, cur_root)
-        out, state = self.network.step(inputs, recurrent)
-        rot, root = out.rotations, out.root
+        out, state = self._predict(inputs, recurrent)
+        root = out.root
+        cur = cur_rot.permute(1, 2, 0)
+        raw = out.raw_rotations.permute(1, 2, 0).contiguous()
         # A prediction holding NaN or inf keeps the previous pose, root and state (x - x is
         # 0 for every finite x only).
-        total = rot.sum((-1, -2)) + root.sum(-1)
+        total = raw.sum((0, 1)) + root.sum(-1)
         finite = (total - total) == 0
-        rot = torch.where(finite[:, None, None], same_hemisphere(rot, cur_rot), cur_rot)
-        rot = rot * self.keep + (1.0 - self.keep) * rot.new_tensor([1.0, 0.0, 0.0, 0.0])
+        rot = self._next_rotations(raw, cur, finite)
         root = torch.where(finite[:, None], root, cur_root)
         state = torch.where(finite[None, :, None], state, recurrent)
         h = root[:, 0].clamp(*HEIGHT_RANGE)
@@ -298,15 +351,16 @@ class AgentStep(nn.Module):
         x = f["x"] + c * local[:, 0] + s * local[:, 1]
         z = f["z"] - s * local[:, 0] + c * local[:, 1]
         heading = _wrap(heading0 + tangent + sel(0.0, side * delta_lp))
-        rot = sel(self.standing.expand(b, -1, -1), rot)
+        if starts:
+            rot = torch.where(starting, self.standing_last, rot)
         root = sel(stand_root.expand(b, -1), torch.stack((h, s_pf, delta), 1))
         xz = torch.stack((x, z), -1)
-        rotations, root_position, world, canonical = self.pose_world(rot, root[:, 0], xz,
-                                                                     heading)
+        rotations, root_position, world, canonical = self._placed(rot, root[:, 0], xz, heading)
         tau = 2.0 * math.pi
         theta = theta + omega
         new = {
-            "rotations": rot, "root": root, "affective": gait_affective(canonical, self.roles),
+            "rotations": rot.permute(2, 0, 1), "root": root,
+            "affective": gait_affective_batch_last(canonical, self.roles).permute(1, 0),
             "theta": theta - tau * torch.floor(theta / tau),
             "speed_lowpass": sel(0.0, slp + self.alpha * (target - slp)),
             "delta": sel(0.0, delta_lp), "kappa": sel(0.0, s_pf * s_pf * curvature.abs()),
@@ -315,12 +369,18 @@ class AgentStep(nn.Module):
         lock = LockTensors(*(f[f"lock_{k}"] for k in LOCK_FIELDS))
         lock = lock._replace(planted=lock.planted > 0.5)
         if self.foot_lock:
-            rotations, world, lock = lock_step(self.legs, lock, rotations, world,
-                                               s_pf * self.fps, self.fps, self.settings)
+            rotations, world, lock = lock_batch_last(self.legs, lock, rotations, world,
+                                                     s_pf * self.fps, self.fps, self.settings)
         for k, v in zip(LOCK_FIELDS, lock, strict=True):
             new[f"lock_{k}"] = sel(NO_PREVIOUS_POSITION if k == "previous" else 0.0,
                                    v.to(agent.dtype))
         contacts = new["lock_planted"]
         ground = torch.stack((x, z, heading), -1)
-        return StepOutputs(state, self.layout.pack(new), rotations, root_position, world,
-                           contacts, ground, advance)
+        return StepOutputs(state, self.layout.pack(new), rotations.permute(2, 0, 1),
+                           root_position, world.permute(2, 0, 1), contacts, ground, advance)
+
+    def _predict(self, inputs: GaitInputs, recurrent: torch.Tensor) -> tuple[Any, torch.Tensor]:
+        """The network's step; a torch network's without normalizing (done here)."""
+        if isinstance(self.network, GaitNetwork):
+            return self.network.step(inputs, recurrent, normalize=False)
+        return self.network.step(inputs, recurrent)

@@ -77,12 +77,15 @@ class AgentLayout:
         return rows[:, self.slices[name]].reshape(-1, *self.shapes[name])
 
     def unpack(self, rows: torch.Tensor) -> dict[str, torch.Tensor]:
-        """Every field of ``(B, S)`` rows, by name."""
-        return {name: self.field(rows, name) for name in self.shapes}
+        """Every field of ``(B, S)`` rows, by name (views, from one split)."""
+        sizes = [s.stop - s.start for s in self.slices.values()]
+        parts = torch.split(rows, sizes, 1)
+        return {name: part.reshape(-1, *shape)
+                for (name, shape), part in zip(self.shapes.items(), parts, strict=True)}
 
     def pack(self, fields: dict[str, torch.Tensor]) -> torch.Tensor:
         """``(B, S)`` rows from every field, each ``(B, *shape)``."""
-        parts = [fields[name].reshape(fields[name].shape[0], -1) for name in self.shapes]
+        parts = [fields[name].reshape(-1, math.prod(shape)) for name, shape in self.shapes.items()]
         return torch.cat(parts, 1)
 
     def to_json(self) -> list[dict]:

@@ -62,22 +62,27 @@ class PathSampling:
         return {"count": self.count, "first": self.first, "spacing": self.spacing}
 
 
+#: The uniform Catmull-Rom spline as weights of ``p0 .. p3`` per power of ``t`` (rows ``1, t,
+#: t^2, t^3``): the segment from ``p1`` to ``p2``.
+CATMULL_ROM = ((0.0, 1.0, 0.0, 0.0), (-0.5, 0.0, 0.5, 0.0), (1.0, -2.5, 2.0, -0.5),
+               (-0.5, 1.5, -1.5, 0.5))
+
+
 def point_at(samples: torch.Tensor, u: torch.Tensor, sampling: PathSampling) -> torch.Tensor:
     """``(B, M, 2)`` the path at arc offsets ``u`` ``(B, M)``.
 
     The Catmull-Rom spline through the samples ``(B, K, 2)`` (uniform: it passes through
-    every sample).
+    every sample), its four control points gathered at once.
     """
     x = (u - sampling.first) / sampling.spacing
     i = torch.floor(x).clamp(1.0, sampling.count - 3.0)
-    t = (x - i)[..., None]
-    idx = (i.long() - 1)[..., None].expand(-1, -1, 2)
-    p0, p1, p2, p3 = (torch.gather(samples, 1, idx + k) for k in range(4))
-    a = 2.0 * p1
-    b = p2 - p0
-    c = 2.0 * p0 - 5.0 * p1 + 4.0 * p2 - p3
-    d = 3.0 * (p1 - p2) + p3 - p0
-    return 0.5 * (a + t * (b + t * (c + t * d)))
+    t = x - i
+    four = torch.arange(-1, 3, device=u.device)
+    index = (i.long()[..., None] + four).flatten(1)
+    powers = torch.stack((torch.ones_like(t), t, t * t, t * t * t), -1)
+    weights = powers @ torch.tensor(CATMULL_ROM, dtype=samples.dtype, device=samples.device)
+    x, z = (torch.gather(samples[..., k], 1, index).unflatten(1, (-1, 4)) for k in (0, 1))
+    return torch.stack(((weights * x).sum(-1), (weights * z).sum(-1)), -1)
 
 
 def path_at(samples: torch.Tensor, u: torch.Tensor, sampling: PathSampling

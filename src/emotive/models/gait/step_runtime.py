@@ -25,6 +25,7 @@ from emotive.data.store import emotive_home
 from emotive.errors import ConfigError, EmotiveError, OutputError
 from emotive.models.gait.model import GaitModel
 from emotive.models.gait.onnx_export import OPSET, require, weights_fingerprint
+from emotive.models.gait.onnx_runtime import read_file_metadata
 from emotive.models.gait.step_export import (
     STEP_FORMAT,
     STEP_INPUTS,
@@ -53,22 +54,8 @@ def read_step_metadata(path: str | Path) -> dict[str, str]:
         ConfigError: the file is missing, not an ONNX model or not an agent step of emotive.
         OnnxUnavailableError: ``onnx`` is not installed.
     """
-    onnx = require("onnx")
-    path = Path(path)
-    if not path.is_file():
-        raise ConfigError(f"{path}: no such ONNX file; write it with "
-                          f"`emotive export onnx --step agent --out {path}`")
-    try:
-        proto = onnx.load(str(path), load_external_data=False)
-    except Exception as exc:  # onnx raises DecodeError, ValueError, OSError, ... on bad files
-        raise ConfigError(f"{path}: not a readable ONNX model ({type(exc).__name__}); "
-                          f"{_fix(path)}") from None
-    meta = {p.key: p.value for p in proto.metadata_props}
-    missing = [k for k in STEP_META_KEYS if k not in meta]
-    if meta.get("format") != STEP_FORMAT or missing:
-        raise ConfigError(f"{path}: not an emotive agent step file (format "
-                          f"{meta.get('format')!r}, missing {missing}); {_fix(path)}")
-    return meta
+    return read_file_metadata(path, STEP_FORMAT, STEP_META_KEYS, "agent step",
+                              "emotive export onnx --step agent")
 
 
 class OnnxAgentStep:

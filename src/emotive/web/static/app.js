@@ -1,6 +1,7 @@
 // The browser runtime of `emotive export web`: gait agents stepped in the page by
-// onnxruntime-web (engine.js), drawn with the served app's figures, emotion controls and
-// WebXR buttons. No emotive server: any static file server of the exported folder will do.
+// onnxruntime-web (engine.js), shown with the served app's view, figures, mouse input,
+// cameras, panel, emotion controls and WebXR buttons (its modules, copied into the export).
+// No emotive server: any static file server of the exported folder will do.
 //
 // URL parameters: `?demo=1` starts with four walking agents; `?paused=1` starts with the
 // clock stopped (the agents step only through the test hook or the Pause button).
@@ -8,12 +9,14 @@
 // window.emotiveWeb (hook.js) is a read-only view of the page's state for tests and the
 // console, with the test functions that feed the page the inputs a test feeds Python.
 
-import * as THREE from "three";
-import { GLTFLoader } from "three/addons/loaders/GLTFLoader.js";
-import { Mannequin, StickFigure, emotionColor } from "./figures.js";
 import { LabelSliders, MAIN_LABELS, ValenceArousalDisc } from "./emotion-controls.js";
-import { setUpXR } from "./xr.js";
-import { createView } from "./scene.js";
+import { createView } from "./scene-setup.js";
+import { listenToGround } from "./ground-input.js";
+import { AgentFigures, dropUnseen, figuresOf, loadMannequin } from "./agent-figures.js";
+import { FollowCamera } from "./follow-camera.js";
+import {
+  AgentList, Rates, cameraButtons, figureButtons, mouseModeButtons, sticksOnly, toaster,
+} from "./panel.js";
 import { AgentEngine, Lock } from "./engine.js";
 import { installHook } from "./hook.js";
 import { GroundPath, circlePath, waypointPath } from "./paths.js";
@@ -22,37 +25,17 @@ import { RuntimeError, loadMetadata, loadRuntime, requireWasmSimd } from "./runt
 
 const params = new URLSearchParams(location.search);
 
-// A click within this distance (metres, on the ground) of an agent selects it.
-const PICK_RADIUS = 0.8;
-// Drawn paths keep a point every this many metres.
-const PATH_SPACING = 0.2;
-// A press that moves less than this (pixels) is a click.
-const CLICK_PIXELS = 5;
 // Radius of the circle a placed agent walks, metres.
 const PLACED_RADIUS = 1.5;
 // Steps the clock may run at once to catch up after a slow frame; beyond, time is dropped.
 const MAX_CATCH_UP = 4;
-// Follow camera: offset behind and above the agent (metres) and smoothing rates (1/s).
-const FOLLOW_BACK = 4.5;
-const FOLLOW_UP = 2.2;
-const FOLLOW_RATE = 2.5;
-const LOOK_RATE = 6;
 
 const $ = (id) => document.getElementById(id);
-const round = (v) => Math.round(v * 1000) / 1000;
 const errors = [];
-
-function toast(text) {
-  errors.push(text);
-  const div = document.createElement("div");
-  div.className = "toast";
-  div.textContent = text;
-  $("toasts").append(div);
-  setTimeout(() => div.remove(), 5000);
-}
+const toast = toaster(errors);
 
 const view = createView($("view"));
-const { renderer, camera, controls, world, selectionRing } = view;
+const cameras = new FollowCamera(view);
 const lock = new Lock();
 
 const app = {
@@ -83,28 +66,9 @@ function running() {
 // --- agents on screen ----------------------------------------------------------------------
 
 /** One agent's figures, placed from the latest frame of the engine. */
-class AgentView {
+class AgentView extends AgentFigures {
   constructor(id) {
-    const skeleton = app.meta.skeleton;
-    this.id = id;
-    this.group = new THREE.Group();
-    this.sticks = new StickFigure(skeleton);
-    this.mannequin = app.template ? new Mannequin(app.template, skeleton) : null;
-    this.group.add(this.sticks.object);
-    if (this.mannequin) this.group.add(this.mannequin.object);
-    this.position = new THREE.Vector3();
-    this.heading = new THREE.Vector3(0, 0, 1);
-    this.color = new THREE.Color();
-    this.va = { valence: 0, arousal: 0 };
-    this.points = null;
-    world.add(this.group);
-    this.showMode();
-  }
-
-  showMode() {
-    const mannequin = app.figureMode === "mannequin" && this.mannequin !== null;
-    this.sticks.object.visible = !mannequin;
-    if (this.mannequin) this.mannequin.object.visible = mannequin;
+    super(id, app.meta.skeleton, app.template, view.world, app.figureMode);
   }
 
   /** Pose from row `b` of `frame` (hidden while the agent takes its start steps). */
@@ -112,32 +76,14 @@ class AgentView {
     this.group.visible = frame.walking[b] === 1;
     if (!this.group.visible) return;
     const { J, P } = app.engine;
-    const mover = frame.root_position.subarray(3 * b, 3 * b + 3);
-    const step = new THREE.Vector3(mover[0] - this.position.x, 0, mover[2] - this.position.z);
-    // Heading from the walking direction, smoothed (the follow camera sits behind it).
-    if (this.points && step.lengthSq() > 1e-8) this.heading.lerp(step.normalize(), 0.15).normalize();
-    this.position.set(mover[0], mover[1], mover[2]);
-    this.va = pointOf(app.meta.emotion, agent.emotion);
-    emotionColor(this.va.valence, this.va.arousal, this.color);
-    this.points = frame.world.subarray(3 * P * b, 3 * P * (b + 1));
-    if (this.sticks.object.visible) {
-      this.sticks.pose(this.points);
-      this.sticks.color(this.color);
-    }
-    if (this.mannequin?.object.visible) {
-      this.mannequin.pose(frame.rotations.subarray(4 * J * b, 4 * J * (b + 1)), mover, this.points);
-      this.mannequin.color(this.color);
-    }
-  }
-
-  dispose() {
-    world.remove(this.group);
-    this.sticks.dispose();
-    if (this.mannequin) this.mannequin.dispose();
+    this.pose(frame.root_position.subarray(3 * b, 3 * b + 3),
+              pointOf(app.meta.emotion, agent.emotion),
+              frame.world.subarray(3 * P * b, 3 * P * (b + 1)),
+              frame.rotations.subarray(4 * J * b, 4 * J * (b + 1)));
   }
 }
 
-let listIds = "";
+const agentList = new AgentList((id) => select(id));
 
 /** Bring the figures to the engine's latest frame. */
 function showFrame(frame) {
@@ -147,52 +93,12 @@ function showFrame(frame) {
     const agent = app.engine.agent(id);
     if (!agent) return;
     seen.add(id);
-    let v = app.views.get(id);
-    if (!v) {
-      v = new AgentView(id);
-      app.views.set(id, v);
-    }
-    v.update(frame, b, agent);
+    figuresOf(app.views, id, (i) => new AgentView(i)).update(frame, b, agent);
   });
-  for (const [id, v] of app.views) {
-    if (!seen.has(id)) {
-      v.dispose();
-      app.views.delete(id);
-      if (app.selected === id) select(null);
-    }
-  }
-  const ids = [...app.views.keys()].join(",");
-  if (ids !== listIds) {
-    listIds = ids;
-    renderAgentList();
-  }
+  dropUnseen(app.views, seen, (id) => { if (app.selected === id) select(null); });
+  agentList.update(app.views, app.selected);
   const selected = app.views.get(app.selected);
   if (selected) disc.show(selected.va);
-}
-
-function renderAgentList() {
-  const list = $("agent-list");
-  list.replaceChildren();
-  for (const id of app.views.keys()) {
-    const li = document.createElement("li");
-    const button = document.createElement("button");
-    button.dataset.agent = String(id);
-    button.classList.toggle("on", id === app.selected);
-    const swatch = document.createElement("span");
-    swatch.className = "swatch";
-    button.append(swatch, `Agent ${id}`);
-    button.addEventListener("click", () => select(id));
-    li.append(button);
-    list.append(li);
-  }
-  refreshSwatches();
-}
-
-function refreshSwatches() {
-  for (const button of $("agent-list").querySelectorAll("button")) {
-    const v = app.views.get(Number(button.dataset.agent));
-    if (v) button.firstChild.style.background = `#${v.color.getHexString()}`;
-  }
 }
 
 // --- selection and emotion editing ---------------------------------------------------------
@@ -223,9 +129,7 @@ function select(id) {
   const v = app.views.get(app.selected);
   if (v) disc.show(v.va);
   if (sliders) sliders.set(agent ? weightsObject(app.meta.emotion, agent.emotion) : null, Boolean(agent));
-  for (const button of $("agent-list").querySelectorAll("button")) {
-    button.classList.toggle("on", Number(button.dataset.agent) === app.selected);
-  }
+  agentList.mark(app.selected);
   view.setLine(view.selectedPathLine, agent ? agent.path.outline() : []);
 }
 
@@ -237,19 +141,6 @@ $("remove-agent").addEventListener("click", () => {
 
 // --- mouse on the ground: place, pick, draw --------------------------------------------------
 
-function nearestView(point) {
-  let best = null;
-  let bestDistance = PICK_RADIUS;
-  for (const v of app.views.values()) {
-    const d = Math.hypot(v.position.x - point.x, v.position.z - point.z);
-    if (v.group.visible && d < bestDistance) {
-      best = v;
-      bestDistance = d;
-    }
-  }
-  return best;
-}
-
 // An agent added with the mouse is selected once it shows.
 let pendingSelect = null;
 
@@ -258,13 +149,6 @@ async function addAgent(path) {
   if (!engine) return;
   const emotion = emotionWeights(app.meta.emotion, { neutral: 1 });
   [pendingSelect] = await engine.add([{ path, emotion, phase: Math.random() * 2 * Math.PI }]);
-}
-
-function onClick(point) {
-  const v = nearestView(point);
-  if (v) select(v.id);
-  else if (app.mouseMode === "place") addAgent(circlePath(round(point.x), round(point.z), PLACED_RADIUS));
-  else select(null);
 }
 
 async function onPathDrawn(points) {
@@ -285,91 +169,17 @@ async function onPathDrawn(points) {
   }
 }
 
-let press = null;
-
-renderer.domElement.addEventListener("pointerdown", (event) => {
-  if (event.button !== 0 || renderer.xr.isPresenting) return;
-  const point = view.groundAt(event);
-  press = { x: event.clientX, y: event.clientY, point, drawing: app.mouseMode === "draw" && point !== null };
-  if (press.drawing) {
-    renderer.domElement.setPointerCapture(event.pointerId);
-    press.path = [[round(point.x), round(point.z)]];
-    view.setLine(view.drawnLine, press.path);
-  }
-});
-
-renderer.domElement.addEventListener("pointermove", (event) => {
-  if (!press?.drawing) return;
-  const point = view.groundAt(event);
-  if (!point) return;
-  const [lx, lz] = press.path[press.path.length - 1];
-  if (Math.hypot(point.x - lx, point.z - lz) >= PATH_SPACING) {
-    press.path.push([round(point.x), round(point.z)]);
-    view.setLine(view.drawnLine, press.path);
-  }
-});
-
-renderer.domElement.addEventListener("pointerup", (event) => {
-  if (!press) return;
-  const moved = Math.hypot(event.clientX - press.x, event.clientY - press.y);
-  const { drawing, path, point } = press;
-  press = null;
-  if (drawing && path.length >= 2) {
-    const end = view.groundAt(event);
-    const [lx, lz] = path[path.length - 1];
-    if (end && Math.hypot(end.x - lx, end.z - lz) > 1e-3) path.push([round(end.x), round(end.z)]);
-    onPathDrawn(path);
-  } else if (moved < CLICK_PIXELS && point) {
-    if (drawing) view.setLine(view.drawnLine, app.drawnPath);
-    onClick(point);
-  }
+listenToGround(view, app, app.views, {
+  select,
+  place: (x, z) => addAgent(circlePath(x, z, PLACED_RADIUS)),
+  drawn: onPathDrawn,
 });
 
 // --- toggles -----------------------------------------------------------------------------------
 
-/** Buttons of which one is on; `onChange(value)` when another is pressed. */
-function toggleGroup(buttons, onChange) {
-  let current = buttons[0][1];
-  for (const [id, value] of buttons) {
-    $(id).addEventListener("click", () => {
-      if (value === current) return;
-      current = value;
-      for (const [other] of buttons) $(other).classList.toggle("on", other === id);
-      onChange(value);
-    });
-  }
-}
-
-toggleGroup([["mode-place", "place"], ["mode-draw", "draw"]], (mode) => {
-  app.mouseMode = mode;
-  controls.enabled = mode === "place" && app.cameraMode === "fixed";
-  $("mode-hint").textContent = mode === "draw"
-    ? "Press, drag and release on the ground: the selected agent walks the path (no selection: a new agent)."
-    : "Click the ground to place an agent; click an agent to select it.";
-});
-
-toggleGroup([["figure-mannequin", "mannequin"], ["figure-sticks", "sticks"]], (mode) => {
-  app.figureMode = mode;
-  for (const v of app.views.values()) v.showMode();
-  if (app.shownFrame) showFrame(app.shownFrame);
-});
-
-const followLook = new THREE.Vector3();
-
-toggleGroup([["camera-fixed", "fixed"], ["camera-follow", "follow"]], (mode) => {
-  app.cameraMode = mode;
-  if (mode === "fixed") {
-    camera.position.copy(view.fixedView.position);
-    controls.target.copy(view.fixedView.target);
-    controls.update();
-  } else {
-    view.fixedView.position.copy(camera.position);
-    view.fixedView.target.copy(controls.target);
-    if (app.selected === null && app.views.size) select(app.views.keys().next().value);
-    followLook.copy(controls.target);
-  }
-  controls.enabled = mode === "fixed" && app.mouseMode === "place";
-});
+mouseModeButtons(app, view);
+figureButtons(app, app.views, () => { if (app.shownFrame) showFrame(app.shownFrame); });
+cameraButtons(app, cameras, app.views, select);
 
 function setRunning(on) {
   app.running = on;
@@ -406,58 +216,32 @@ async function tick() {
 
 // --- render loop and stats ---------------------------------------------------------------------
 
-const timer = new THREE.Timer();
-let xr = null;
-let rendered = 0;
-let statsAt = performance.now();
-let stepsAtStats = 0;
+const rates = new Rates();
 
-function updateCamera(dt) {
-  const v = app.views.get(app.selected);
-  if (app.cameraMode !== "follow" || !v || renderer.xr.isPresenting) return;
-  const wanted = v.position.clone().addScaledVector(v.heading, -FOLLOW_BACK);
-  wanted.y = FOLLOW_UP;
-  const look = v.position.clone();
-  look.y = 1.0;
-  camera.position.lerp(world.localToWorld(wanted), 1 - Math.exp(-FOLLOW_RATE * dt));
-  followLook.lerp(world.localToWorld(look), 1 - Math.exp(-LOOK_RATE * dt));
-  camera.lookAt(followLook);
-}
-
-function render(time, xrFrame) {
-  timer.update(time);
-  // Capped so that a long pause (a hidden tab) does not jump the follow camera.
-  const dt = Math.min(timer.getDelta(), 0.5);
-  if (xrFrame && xr) xr.update(xrFrame);
+/** Before each frame is drawn, `dt` seconds after the last: the engine's latest frame shows. */
+function beforeRender(dt) {
   const frame = app.engine?.frame;
   if (frame && frame !== app.shownFrame) showFrame(frame);
-  updateCamera(dt);
+  cameras.update(app.views.get(app.selected), dt);
   if (pendingSelect !== null && app.views.get(pendingSelect)?.group.visible) {
     select(pendingSelect);
     pendingSelect = null;
   }
   const selected = app.views.get(app.selected);
-  selectionRing.visible = Boolean(selected?.group.visible);
-  if (selected) selectionRing.position.set(selected.position.x, 0.01, selected.position.z);
-  renderer.render(view.scene, camera);
-  rendered++;
+  view.ringAt(selected?.group.visible ? selected.position : null);
   app.framesRendered++;
 }
 
 function everySecond() {
-  const now = performance.now();
-  const seconds = (now - statsAt) / 1000;
-  const steps = app.engine?.frames ?? 0;
-  app.renderFps = rendered / seconds;
-  app.stepsPerSecond = (steps - stepsAtStats) / seconds;
-  statsAt = now;
-  rendered = 0;
-  stepsAtStats = steps;
+  const { rendered, steps } = rates.sample({ rendered: app.framesRendered,
+                                            steps: app.engine?.frames ?? 0 });
+  app.renderFps = rendered;
+  app.stepsPerSecond = steps;
   $("stat-fps").textContent = app.renderFps.toFixed(0);
   $("stat-steps").textContent = app.engine ? app.stepsPerSecond.toFixed(0) : "-";
   const ms = app.engine?.medianMs();
   $("stat-step-ms").textContent = ms == null ? "-" : ms.toFixed(1);
-  refreshSwatches();
+  agentList.refresh(app.views);
 }
 
 // --- the hook for tests and the console ----------------------------------------------------------
@@ -465,15 +249,6 @@ function everySecond() {
 installHook({ app, view, errors, lock, running, setRunning });
 
 // --- start ---------------------------------------------------------------------------------------
-
-async function loadMannequin(meta) {
-  try {
-    return (await new GLTFLoader().loadAsync(new URL(meta.mannequin, location.href).href)).scene;
-  } catch (err) {
-    toast(`mannequin unavailable, drawing stick figures: ${err.message}`);
-    return null;
-  }
-}
 
 /** Four agents walking loops, as the served app's `?demo=1`. */
 function startDemo() {
@@ -491,34 +266,20 @@ function startDemo() {
 }
 
 async function start() {
-  renderer.setAnimationLoop(render);
+  view.animate(beforeRender);
   setInterval(everySecond, 1000);
-  xr = await setUpXR(renderer, view.scene, world, $("xr"), {
-    onStart: (session) => {
-      if (session.environmentBlendMode !== "opaque") {
-        view.scene.background = null;
-        view.floor.visible = false;
-      }
-    },
-    onEnd: () => {
-      view.scene.background = view.background;
-      view.floor.visible = true;
-    },
-  });
+  await view.setUpXR($("xr"));
   requireWasmSimd();
   const meta = await loadMetadata();
   app.meta = meta;
   sliders = new LabelSliders($("sliders"), meta.emotion.labels, onSliders);
   disc.setLabels(Object.fromEntries(Object.entries(meta.emotion.points)
     .filter(([label]) => MAIN_LABELS.includes(label))));
-  const [{ ort, session }, template] = await Promise.all([loadRuntime(meta), loadMannequin(meta)]);
+  const mannequinUrl = new URL(meta.mannequin, location.href).href;
+  const [{ ort, session }, template] = await Promise.all([loadRuntime(meta),
+                                                          loadMannequin(mannequinUrl, toast)]);
   Object.assign(app, { ort, session, template });
-  if (!template) {
-    app.figureMode = "sticks";
-    $("figure-sticks").classList.add("on");
-    $("figure-mannequin").classList.remove("on");
-    $("figure-mannequin").disabled = true;
-  }
+  if (!template) sticksOnly(app);
   app.engine = new AgentEngine(ort, session, meta.step, lock);
   app.status = "running";
   app.ready = true;

@@ -1,9 +1,12 @@
-// The 3-D view of the browser runtime, as the served app draws it (emotive serve's app.js): a
-// ground grid in metres (Y up), lights, an orbit camera, the drawn and selected paths, the
-// selection ring, and the ground point under the pointer.
+// The 3-D view of the served app and of the browser runtime (emotive export web): renderer,
+// lights, a ground grid in metres (Y up), an orbit camera, the drawn and selected paths, the
+// selection ring, the WebXR buttons, and the conversions between the ground and the page.
+//
+// Units: metres in scene coordinates (the ground is y = 0), pixels on the page.
 
 import * as THREE from "three";
 import { OrbitControls } from "three/addons/controls/OrbitControls.js";
+import { setUpXR } from "./xr.js";
 
 // Side of the ground grid, metres.
 const GRID_SIZE = 40;
@@ -32,7 +35,14 @@ function groundGrid(size, axisColor, lineColor) {
   return new THREE.LineSegments(geometry, new THREE.LineBasicMaterial({ vertexColors: true }));
 }
 
-/** The view in `container`: renderer, scene, the `world` group (AR moves it), camera, lines. */
+/**
+ * The view in `container` (an element the canvas fills, at the window's size).
+ *
+ * @returns the renderer, the scene and its `background`, the `world` group (everything in
+ *   scene coordinates; AR moves it onto the real floor), the `floor` (ground and grid), the
+ *   camera and its orbit `controls`, `fixedView` (the orbit camera's position and target),
+ *   the `drawnLine` and `selectedPathLine`, and the functions below.
+ */
 export function createView(container) {
   const renderer = new THREE.WebGLRenderer({ antialias: true });
   renderer.setPixelRatio(Math.min(window.devicePixelRatio, 2));
@@ -48,7 +58,6 @@ export function createView(container) {
   sun.position.set(5, 10, 7);
   scene.add(sun);
 
-  // Everything placed in scene coordinates (metres, Y up); AR moves it onto the real floor.
   const world = new THREE.Group();
   scene.add(world);
   const floor = new THREE.Group();
@@ -73,6 +82,8 @@ export function createView(container) {
     world.add(line);
     return line;
   };
+  const drawnLine = lineAt(0x4fd1ff);
+  const selectedPathLine = lineAt(0xffd54f);
 
   const selectionRing = new THREE.Mesh(new THREE.RingGeometry(0.35, 0.42, 40).rotateX(-Math.PI / 2),
                                        new THREE.MeshBasicMaterial({ color: 0xffffff }));
@@ -88,14 +99,13 @@ export function createView(container) {
 
   const raycaster = new THREE.Raycaster();
   const groundPlane = new THREE.Plane(new THREE.Vector3(0, 1, 0), 0);
+  let xr = null;
 
   return {
-    renderer, scene, background, world, floor, camera, controls, selectionRing,
-    drawnLine: lineAt(0x4fd1ff),
-    selectedPathLine: lineAt(0xffd54f),
+    renderer, scene, background, world, floor, camera, controls, drawnLine, selectedPathLine,
     fixedView: { position: camera.position.clone(), target: controls.target.clone() },
 
-    /** Show `points` [[x, z], ...] as `line`, just above the ground. */
+    /** Show `points` [[x, z], ...] (metres) as `line`, just above the ground. */
     setLine(line, points) {
       // A new geometry each time: the number of points changes.
       line.geometry.dispose();
@@ -103,7 +113,13 @@ export function createView(container) {
         points.map(([x, z]) => new THREE.Vector3(x, 0.02, z)));
     },
 
-    /** The ground point (scene coordinates) under a pointer event, or null. */
+    /** The selection ring around the ground point under `position` (metres), or none (null). */
+    ringAt(position) {
+      selectionRing.visible = Boolean(position);
+      if (position) selectionRing.position.set(position.x, 0.01, position.z);
+    },
+
+    /** The ground point (scene coordinates, metres) under a pointer event, or null. */
     groundAt(event) {
       const rect = renderer.domElement.getBoundingClientRect();
       const ndc = new THREE.Vector2(((event.clientX - rect.left) / rect.width) * 2 - 1,
@@ -113,11 +129,46 @@ export function createView(container) {
       return hit ? world.worldToLocal(hit) : null;
     },
 
-    /** Page coordinates [px, py] of the ground point (x, z). */
+    /** Page coordinates [px, py] of the ground point (x, z) (metres). */
     toScreen(x, z) {
       const p = world.localToWorld(new THREE.Vector3(x, 0, z)).project(camera);
       const rect = renderer.domElement.getBoundingClientRect();
       return [rect.left + ((p.x + 1) / 2) * rect.width, rect.top + ((1 - p.y) / 2) * rect.height];
+    },
+
+    /**
+     * Render every display or XR frame, calling `beforeRender(dt)` first: dt the seconds
+     * since the last frame, capped at 0.5 s so that a long pause (a hidden tab) does not
+     * jump the follow camera.
+     */
+    animate(beforeRender) {
+      const timer = new THREE.Timer();
+      renderer.setAnimationLoop((time, xrFrame) => {
+        timer.update(time);
+        const dt = Math.min(timer.getDelta(), 0.5);
+        if (xrFrame && xr) xr.update(xrFrame);
+        beforeRender(dt);
+        renderer.render(scene, camera);
+      });
+    },
+
+    /**
+     * The AR and VR buttons in `container` (xr.js), updated by `animate`'s loop; in a
+     * see-through AR session the background and the floor are hidden.
+     */
+    async setUpXR(container) {
+      xr = await setUpXR(renderer, scene, world, container, {
+        onStart: (session) => {
+          if (session.environmentBlendMode !== "opaque") {
+            scene.background = null;
+            floor.visible = false;
+          }
+        },
+        onEnd: () => {
+          scene.background = background;
+          floor.visible = true;
+        },
+      });
     },
   };
 }
