@@ -14,13 +14,12 @@ import signal
 import subprocess
 import sys
 import threading
-import time
 from collections.abc import Iterator
 from contextlib import contextmanager
-from pathlib import Path
 
 import httpx
 import pytest
+from worker_procs import step_workers, wait_gone
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"),
                                 reason="finds the worker processes in /proc (Linux)")
@@ -28,39 +27,6 @@ pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"),
 #: Wall seconds the server may take to start, or its workers to go: hang guards.
 HANG_SECONDS = 180.0
 _URL = re.compile(r"app:\s+(http://\S+?)/")
-
-
-def _alive(pid: int) -> bool:
-    """Whether process ``pid`` exists and is not a zombie."""
-    try:
-        stat = Path(f"/proc/{pid}/stat").read_text()
-    except OSError:
-        return False
-    return stat.rsplit(")", 1)[1].split()[0] != "Z"
-
-
-def _workers(parent: int) -> set[int]:
-    """The step workers whose parent is ``parent``."""
-    found = set()
-    for entry in Path("/proc").iterdir():
-        if not entry.name.isdigit():
-            continue
-        try:
-            stat = (entry / "stat").read_text()
-            cmdline = (entry / "cmdline").read_bytes()
-        except OSError:
-            continue
-        if int(stat.rsplit(")", 1)[1].split()[1]) == parent and (
-                b"emotive.serve.worker_process" in cmdline):
-            found.add(int(entry.name))
-    return found
-
-
-def _until(check, what: str) -> None:
-    deadline = time.monotonic() + HANG_SECONDS
-    while not check():
-        assert time.monotonic() < deadline, f"{what} within {HANG_SECONDS:.0f} s"
-        time.sleep(0.1)
 
 
 @contextmanager
@@ -72,21 +38,24 @@ def _server() -> Iterator[tuple[subprocess.Popen, set[int]]]:
          "--workers", "2", "--worker-kind", "processes"], stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT, text=True, start_new_session=True)
     lines: list[str] = []
-    threading.Thread(target=lambda: lines.extend(proc.stdout), daemon=True).start()
+    printed = threading.Event()
+
+    def read() -> None:
+        for line in proc.stdout:
+            lines.append(line)
+            if _URL.search(line):
+                printed.set()
+        printed.set()  # the server ended without a URL
+
+    threading.Thread(target=read, daemon=True).start()
     try:
-        _until(lambda: any(_URL.search(line) for line in list(lines)) or proc.poll() is not None,
-               "the server printed no URL")
-        url = next(m.group(1) for m in map(_URL.search, list(lines)) if m)
-
-        def answers() -> bool:
-            try:
-                return httpx.get(f"{url}/api/health", timeout=HANG_SECONDS).status_code == 200
-            except httpx.HTTPError:
-                return proc.poll() is not None
-
-        _until(answers, "the server did not answer")
+        assert printed.wait(HANG_SECONDS), "the server printed no URL"
+        url = next((m.group(1) for m in map(_URL.search, list(lines)) if m), None)
+        assert url is not None, "".join(lines)
+        # The socket is bound before the URL is printed: this call waits for the answer.
+        assert httpx.get(f"{url}/api/health", timeout=HANG_SECONDS).status_code == 200
         assert proc.poll() is None, "".join(lines)
-        workers = _workers(proc.pid)
+        workers = step_workers(proc.pid)
         yield proc, workers
     finally:
         if proc.poll() is None:
@@ -99,7 +68,7 @@ def test_ctrl_c_stops_the_server_and_its_workers():
         assert len(workers) == 2
         os.killpg(proc.pid, signal.SIGINT)  # what Ctrl-C in a terminal sends
         assert proc.wait(HANG_SECONDS) == 0
-        _until(lambda: not any(map(_alive, workers)), "workers outlived the server")
+        assert not wait_gone(workers, HANG_SECONDS), "workers outlived the server"
 
 
 def test_workers_of_a_killed_server_exit_by_themselves():
@@ -107,4 +76,4 @@ def test_workers_of_a_killed_server_exit_by_themselves():
         assert len(workers) == 2
         proc.kill()  # no shutdown at all: the workers see their socket close
         proc.wait()
-        _until(lambda: not any(map(_alive, workers)), "workers outlived a killed server")
+        assert not wait_gone(workers, HANG_SECONDS), "workers outlived a killed server"

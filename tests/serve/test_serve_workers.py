@@ -11,11 +11,11 @@ import asyncio
 import os
 import signal
 import sys
-from pathlib import Path
 
 import httpx
 import numpy as np
 import pytest
+from worker_procs import step_workers
 
 from emotive.models.gait.generate import GaitFrame
 from emotive.serve.errors import ServeError
@@ -38,21 +38,7 @@ BUFFERED = ServeSettings().buffered_frames
 
 def _worker_pids() -> set[int]:
     """Live step workers that are children of this process."""
-    found = set()
-    for entry in Path("/proc").iterdir():
-        if not entry.name.isdigit():
-            continue
-        try:
-            stat = (entry / "stat").read_text()
-            cmdline = (entry / "cmdline").read_bytes()
-        except OSError:
-            continue
-        # Fields after the command name (in parentheses): state, parent pid, ...
-        state, ppid = stat.rsplit(")", 1)[1].split()[:2]
-        if int(ppid) == os.getpid() and b"emotive.serve.worker_process" in cmdline \
-                and state != "Z":
-            found.add(int(entry.name))
-    return found
+    return step_workers(os.getpid())
 
 
 def _ids(frame) -> list[int]:
