@@ -35,11 +35,13 @@ lint: install
 
 # Test processes (pytest-xdist): two, the cores of the CI machine; the suite's servers bind
 # free loopback ports and its files live in per-test folders, so the processes never meet.
+# Each file runs whole in one process (--dist loadfile): a module's tests may share one
+# server or page and follow each other's state (the browser tests select, then edit).
 TEST_WORKERS ?= 2
 
 test: install lint $(THREEJS)/node_modules/.package-lock.json \
 		$(GLTFJS)/node_modules/.package-lock.json
-	$(BIN)/python -m pytest -n $(TEST_WORKERS)
+	$(BIN)/python -m pytest -n $(TEST_WORKERS) --dist loadfile
 
 # The suite as on a shared 2-core machine with two other jobs running.
 test-stress:

@@ -4,8 +4,9 @@ Legend: ``B`` agents (a dynamic axis), ``J`` joints, ``P = J + E`` points, ``C``
 labels, ``K`` path samples, ``L`` GRU layers, ``H`` GRU width, ``S`` the agent row.
 
 The graph is :class:`~emotive.models.gait.step_graph.AgentStep` traced in float32: the
-network of the main paper (Sec. 4) with the movement controls, the placement on the path, the
-forward kinematics, the affective features and the causal foot lock inside. An engine samples
+network of the main paper (Sec. 4; its GRU as per-gate matrix products,
+:mod:`~emotive.models.gait.gru_frame`) with the movement controls, the placement on the path,
+the forward kinematics, the affective features and the causal foot lock inside. An engine samples
 each agent's path around it, feeds back the state and poses its skeleton; ``docs/runtime.md``
 is the contract with a worked example.
 
@@ -48,6 +49,7 @@ from torch import nn
 
 import emotive
 from emotive.io.atomic import atomic_output
+from emotive.models.gait.gru_frame import FrameGRU
 from emotive.models.gait.model import GaitModel
 from emotive.models.gait.onnx_export import OPSET, require, weights_fingerprint
 from emotive.models.gait.step_graph import WARMUP_STEPS, AgentStep
@@ -141,6 +143,7 @@ def export_agent_step(model: GaitModel, out_path: str | Path, foot_lock: bool = 
     onnx = require("onnx")
     out_path = Path(out_path)
     network = copy.deepcopy(model.network).to(torch.float32).eval()
+    network.gru = FrameGRU(network.gru)
     step = AgentStep(model, torch.float32, foot_lock=foot_lock, network=network).eval()
     axes = {name: {0: "B"} for name in (*STEP_INPUTS, *STEP_OUTPUTS)}
     axes["recurrent"] = axes["next_recurrent"] = {1: "B"}
@@ -148,7 +151,6 @@ def export_agent_step(model: GaitModel, out_path: str | Path, foot_lock: bool = 
         warnings.filterwarnings("ignore", category=torch.jit.TracerWarning)
         warnings.filterwarnings("ignore", message=".*legacy TorchScript-based ONNX export")
         warnings.filterwarnings("ignore", message=".*feature will be removed")
-        warnings.filterwarnings("ignore", message=".*batch_size other than 1.*GRU")
         torch.onnx.export(_SafeStep(step), step.example_inputs(LOOP_LEFT), str(tmp), dynamo=False,
                           opset_version=OPSET, input_names=list(STEP_INPUTS),
                           output_names=list(STEP_OUTPUTS), dynamic_axes=axes,

@@ -120,6 +120,8 @@ class OnnxAgentStep:
                     f"({', '.join(str(d) for d in self.shapes[name])}) = {want} for B={batch} "
                     f"agents, got {got}")
         for name in CONTROLS:
+            if np.isfinite(feeds[name]).all():
+                continue
             bad = ~np.isfinite(feeds[name].reshape(batch, -1)).all(1)
             if bad.any():
                 raise StepInputError(
