@@ -92,7 +92,7 @@ def test_the_wheel_holds_every_file_of_the_package(wheel: Path):
                   "emotive/serve/static/index.html",
                   "emotive/serve/static/vendor/three/three.module.js",
                   "emotive/web/static/index.html",
-                  "emotive/web/static/vendor/onnxruntime-web/ort-wasm-simd-threaded.wasm",
+                  "emotive/assets/onnxruntime-web/ort-wasm-simd-threaded.wasm",
                   "emotive/study/static/index.html", "emotive/study/migrations/env.py",
                   "emotive/study/migrations/versions/0001_initial.py"):
         assert asset in names

@@ -10,6 +10,7 @@ The folder holds everything the page needs and nothing it must fetch elsewhere:
                              from ``emotive/serve/static``)
 ``vendor/three/``            three.js, as the served app vendors it
 ``vendor/onnxruntime-web/``  onnxruntime-web's WebAssembly build, its licence and notices
+                             (:data:`RUNTIME_SOURCE`, from ``emotive/assets``)
 ``agent.onnx``               the whole agent step (:func:`export_agent_step`)
 ``agent.json``               the step's metadata, the rig and the emotion points
 ``mannequin.glb``            the skinned mannequin of the served app's ``/api/mannequin.glb``
@@ -53,8 +54,10 @@ SERVE_STATIC = Path(__file__).parents[1] / "serve" / "static"
 SHARED: tuple[str, ...] = ("app.css", "scene-setup.js", "ground-input.js", "agent-figures.js",
                            "follow-camera.js", "panel.js", "figures.js", "emotion-controls.js",
                            "xr.js", "vendor/three")
-#: The vendored runtime, inside :data:`PAGE`.
+#: Where the export puts the vendored runtime, relative to the page.
 RUNTIME = "vendor/onnxruntime-web"
+#: The vendored runtime in the package (with the package's other large files).
+RUNTIME_SOURCE = Path(__file__).parents[1] / "assets" / "onnxruntime-web"
 #: Names of the generated files.
 GRAPH, METADATA, MANNEQUIN = "agent.onnx", "agent.json", "mannequin.glb"
 #: Metadata entries of the graph that hold JSON.
@@ -187,6 +190,7 @@ def _copy(src: Path, dest: Path) -> None:
 def _write(model: GaitModel, work: Path) -> None:
     """Every file of the export into ``work``."""
     _copy(PAGE, work)
+    _copy(RUNTIME_SOURCE, work / RUNTIME)
     for name in SHARED:
         _copy(SERVE_STATIC / name, work / name)
     export_agent_step(model, work / GRAPH)
