@@ -65,3 +65,22 @@ def test_adding_a_thousand_paths_is_linear_and_queries_are_vectorized():
     assert xz.shape == (1000, 2)
     np.testing.assert_allclose(xz[::97], [p.position(v) for p, v in zip(paths[::97], s[::97],
                                                                           strict=True)], atol=1e-9)
+
+
+def test_an_open_path_continues_straight_past_both_ends():
+    """``ahead`` past an open path's end (and before its start) follows the end tangents."""
+    bank = PathBank()
+    ell = waypoints(np.array([[0.0, 0.0], [0.0, 5.0], [4.0, 5.0]]))   # north, then east
+    slots = np.array([bank.add(line(10.0)), bank.add(ell)])
+    offsets = np.array([-2.0, 0.0, 1.5, 6.0])
+    # The line (+Z) from its end at 10 m; the L from its end, heading +X.
+    points = bank.ahead(slots, np.array([10.0, ell.length]), offsets)
+    np.testing.assert_allclose(points[0], [[0, 8.0], [0, 10.0], [0, 11.5], [0, 16.0]],
+                               atol=1e-9)
+    end = ell.position(ell.length)
+    tangent = np.array([np.sin(ell.heading(ell.length)), np.cos(ell.heading(ell.length))])
+    for k in (2, 3):
+        np.testing.assert_allclose(points[1, k], end + offsets[k] * tangent, atol=1e-9)
+    # Before the start: back along the first tangent.
+    before = bank.ahead(slots[:1], np.array([0.0]), np.array([-3.0, -0.5]))
+    np.testing.assert_allclose(before[0], [[0.0, -3.0], [0.0, -0.5]], atol=1e-9)

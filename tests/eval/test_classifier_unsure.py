@@ -12,7 +12,12 @@ from emotive.cli import main
 from emotive.core.motion import Motion
 from emotive.data.clips import list_clips
 from emotive.data.splits import split_clips
-from emotive.eval.classifier import load_default_classifier, role_track, track_features
+from emotive.eval.classifier import (
+    Judgement,
+    load_default_classifier,
+    role_track,
+    track_features,
+)
 from emotive.eval.classifier_probes import joint_noise, spinning_figure
 from emotive.io.bvh import read_bvh, write_bvh
 from emotive.transforms.np_rotations import euler_to_quaternion, quaternion_multiply
@@ -91,3 +96,19 @@ def test_cli_prints_unsure(model, bandai1_dir, tmp_path, monkeypatch, capsys):
         main()
     err = capsys.readouterr().err
     assert exc.value.code != 0 and "at least 0.8 s" in err and "6.00 s" in err
+
+
+@pytest.mark.parametrize(("unsure", "expected"), [
+    ([True, False], False),                      # exactly half: not most
+    ([True, True, False, False], False),
+    ([True, True, False], True),                 # one more than half
+    ([True, True, True, False, False], True),
+    ([False, False, False], False),
+    ([True], True),
+])
+def test_a_clip_is_unsure_when_most_of_its_windows_are(unsure, expected):
+    k = len(unsure)
+    judgement = Judgement(times=np.arange(k, dtype=float), probabilities=np.full((k, 2), 0.5),
+                          valence_arousal=np.zeros((k, 2)), distance=np.zeros(k),
+                          unsure=np.array(unsure), labels=("happy", "sad"))
+    assert judgement.clip_unsure is expected

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 import torch
@@ -9,6 +11,7 @@ import torch
 from emotive.core.roles import resolve_roles
 from emotive.eval.feet import foot_skating
 from emotive.ik.foot_lock import LockSettings, initial_lock_state, leg_rig, lock_feet
+from emotive.ik.foot_lock_kernel import _contacts
 from emotive.models.gait.generate import GaitGenerator
 from emotive.models.gait.model import load_gait_model
 from emotive.paths import figure8
@@ -116,3 +119,35 @@ def test_sad_feet_do_not_slide_by_the_evaluation_suites_measure(model):
     roles = resolve_roles(model.controls.skeleton)
     skate = [float(foot_skating(w, roles, model.fps).mean_speed) for w in world]
     assert max(skate) < 0.03
+
+
+def _hysteresis(planted: bool, height: float, speed: float, body: float = 0.0) -> bool:
+    """One heel's planted state after a frame at ``height`` (m above standing) and ``speed``
+    (m/s), with the other three points far up; leg length 1 m, default settings."""
+    fps = 30.0
+    feet = torch.zeros(2, 2, 3, 1, dtype=torch.float64)
+    feet[:, :, 1] = 1.0
+    feet[0, 0, 1] = height
+    previous = feet.clone()
+    previous[0, 0, 0] -= speed / fps
+    state = SimpleNamespace(previous=previous,
+                            planted=torch.tensor(planted).reshape(1, 1, 1).expand(2, 2, 1))
+    legs = SimpleNamespace(leg_length=1.0, ground=torch.zeros(2, 2, dtype=torch.float64))
+    contacts = _contacts(legs, state, feet, torch.tensor([body], dtype=torch.float64), fps,
+                         LockSettings())
+    assert not contacts[1].any() and not contacts[0, 1].any()   # the points held up stay up
+    return bool(contacts[0, 0, 0])
+
+
+@pytest.mark.parametrize(("planted", "height", "speed", "body", "expected"), [
+    (False, 0.02, 0.5, 0.0, True),     # low and slow: plants
+    (False, 0.04, 0.5, 0.0, False),    # in the band, not yet planted: stays up
+    (False, 0.02, 1.0, 0.0, False),    # low but moving in the band: stays up
+    (True, 0.04, 1.0, 0.0, True),      # planted, in both bands: held (the hysteresis)
+    (True, 0.04, 1.5, 0.0, False),     # planted, low but moving fast: released
+    (True, 0.06, 0.1, 0.0, False),     # planted, rising while slow: released
+    (True, 0.04, 1.5, 1.0, True),      # fast only for a walking body: held
+    (False, 0.02, 1.5, 1.0, True),     # a walking body plants at its own speed
+])
+def test_lock_hysteresis_plants_and_releases_each_way(planted, height, speed, body, expected):
+    assert _hysteresis(planted, height, speed, body) is expected

@@ -262,6 +262,23 @@ def kind_variants(kind: str, ckpt: dict[str, Any]) -> Iterator[Variant]:
         yield Variant("another kind", "type", {**ckpt, "kind": "gait"})
 
 
+def rig_variants(kind: str, ckpt: dict[str, Any]) -> Iterator[Variant]:
+    """The saved rig damaged: parents out of order, a parent past the joints, a name twice."""
+    entry = {"gait": "controls", "quaternet": "controls", "fcrbm": "codec"}.get(kind)
+    if entry is None:
+        return
+    rig = ckpt[entry]["skeleton"]
+    parents, names = list(rig["parents"]), list(rig["names"])
+    swapped = parents.copy()
+    swapped[1], swapped[2] = len(parents) - 1, 1
+    for name, key, value in (
+        ("parents out of order", "parents", swapped),
+        ("a parent past the joints", "parents", [*parents[:-1], len(parents) + 5]),
+        ("a joint named twice", "names", [names[0], names[0], *names[2:]]),
+    ):
+        yield Variant(f"rig: {name}", "rig", _replace(ckpt, (entry, "skeleton", key), value))
+
+
 def byte_variants(data: bytes) -> Iterator[Variant]:
     """Damage to the file's bytes, loaded as the shipped file (the fingerprint) or as a user's
     copy (the archive's CRC-32)."""
@@ -290,7 +307,7 @@ def byte_variants(data: bytes) -> Iterator[Variant]:
 def variants(kind: str, ckpt: dict[str, Any], data: bytes) -> list[Variant]:
     """Every damaged copy of one kind's shipped checkpoint."""
     return [*tensor_variants(kind, ckpt), *config_variants(ckpt), *kind_variants(kind, ckpt),
-            *byte_variants(data)]
+            *rig_variants(kind, ckpt), *byte_variants(data)]
 
 
 @pytest.fixture(scope="module")
@@ -352,6 +369,8 @@ def test_no_damaged_checkpoint_is_accepted_only_the_pristine_copies(shipped, ass
     assert sum(refused.values()) == len(found) >= 45, refused
     assert {"dtype", "scaled", "nan-inf", "extra", "missing", "shape", "truncated",
             "flipped-bytes", "config-nan", "config-range", "config-type"} <= set(refused)
+    if kind != "classifier":
+        assert refused["rig"] == 3, refused
 
 
 def test_the_corpus_holds_at_least_165_variants(shipped):

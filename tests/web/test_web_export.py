@@ -3,7 +3,9 @@ page against Python's, and one-line failures that leave nothing behind."""
 
 from __future__ import annotations
 
+import errno
 import json
+import os
 import re
 import shutil
 import subprocess
@@ -129,6 +131,23 @@ def test_a_failed_export_leaves_nothing_behind(tmp_path, monkeypatch):
     monkeypatch.setattr(web_export_module, "export_agent_step", fail)
     result = _invoke("--out", tmp_path / "site")
     assert isinstance(result.exception, OutputError)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_full_disk_while_copying_the_runtime_is_one_line(tmp_path, web_export, monkeypatch):
+    copyfile = shutil.copyfile
+
+    def full_for_wasm(src, dst, *args, **kwargs):
+        if str(src).endswith(".wasm"):
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(dst))
+        return copyfile(src, dst, *args, **kwargs)
+
+    monkeypatch.setattr(shutil, "copyfile", full_for_wasm)
+    monkeypatch.setattr(web_export_module, "export_agent_step", _copy_graph(web_export.folder))
+    result = _invoke("--out", tmp_path / "site")
+    message = str(result.exception)
+    assert isinstance(result.exception, OutputError), result.output
+    assert "the disk is full" in message and "\n" not in message and len(message) < 300
     assert list(tmp_path.iterdir()) == []
 
 

@@ -142,9 +142,19 @@ def skeleton_to_dict(skeleton: Skeleton) -> dict:
 
 
 def skeleton_from_dict(values: dict) -> Skeleton:
-    """The rig saved by :func:`skeleton_to_dict` (``KeyError``/``RigError`` on bad input)."""
-    return Skeleton(
-        tuple(values["names"]), np.array(values["parents"]), np.array(values["offsets"]),
-        tuple(tuple(c) for c in values["channels"]), np.array(values["end_site_parents"]),
-        np.array(values["end_site_offsets"]).reshape(-1, 3),
-    )
+    """The rig saved by :func:`skeleton_to_dict`.
+
+    Raises:
+        KeyError: a missing entry.
+        ValueError: a rig that is not valid (parents out of order, mismatched lengths, ...),
+            its reason prefixed by ``skeleton:``, so that the caller reading a saved file
+            names the file in its own error.
+    """
+    try:
+        return Skeleton(
+            tuple(values["names"]), np.array(values["parents"]), np.array(values["offsets"]),
+            tuple(tuple(c) for c in values["channels"]), np.array(values["end_site_parents"]),
+            np.array(values["end_site_offsets"]).reshape(-1, 3),
+        )
+    except RigError as exc:
+        raise ValueError(f"skeleton: {exc}") from None

@@ -179,12 +179,22 @@ def _copy(src: Path, dest: Path) -> None:
     if not src.exists():
         raise ConfigError(f"{src} is missing from this installation of emotive (the page "
                           "needs it); reinstall emotive")
-    if src.is_dir():
-        shutil.copytree(src, dest, ignore=shutil.ignore_patterns("__pycache__", "*.pyc"),
-                        dirs_exist_ok=True)
-    else:
+    if not src.is_dir():
         dest.parent.mkdir(parents=True, exist_ok=True)
         shutil.copy2(src, dest)
+        return
+    # File by file rather than shutil.copytree, which gathers its failures into one
+    # shutil.Error whose text lists every file and has no errno: the first OSError (a full
+    # disk, say) is raised as it is, for output_error's one line.
+    for item in sorted(src.rglob("*")):
+        if "__pycache__" in item.parts or item.suffix == ".pyc":
+            continue
+        target = dest / item.relative_to(src)
+        if item.is_dir():
+            target.mkdir(parents=True, exist_ok=True)
+        else:
+            target.parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(item, target)
 
 
 def _write(model: GaitModel, work: Path) -> None:

@@ -312,11 +312,18 @@ def test_adding_and_removing_agents_keeps_every_field_in_step(model):
     ids = [gen.add_agent(circle(1.0 + 0.1 * i), "sad", seed=i) for i in range(5)]
     for _ in range(5):
         gen.step()
+    kept_rows = gen._batch.rows[[0, 2, 4]].clone()
+    kept_state = gen._batch.state[:, [0, 2, 4]].clone()
     kept_world = gen.first_frame().world[[0, 2, 4]]
     gen.remove_agent(ids[1])
     gen.remove_agent(ids[3])
     assert gen.agents == (ids[0], ids[2], ids[4])
     b = gen._batch
     assert {len(b), b.state.shape[1], len(b.rows), len(b.emotion), len(b.slot)} == {3}
-    np.testing.assert_allclose(gen.first_frame().world, kept_world, atol=1e-12)
+    # The kept agents' fields are copied, so they are the same to the bit; their pose is
+    # computed again in float32 over a batch of another shape, whose kernels may round
+    # differently (3e-8 m seen), so it is compared within float32's spread over a chain
+    # of joints about a metre from the root: 20 products of eps 1.2e-7 each, 1e-5 m.
+    assert torch.equal(b.rows, kept_rows) and torch.equal(b.state, kept_state)
+    np.testing.assert_allclose(gen.first_frame().world, kept_world, rtol=0, atol=1e-5)
     assert len(gen._paths) == 3

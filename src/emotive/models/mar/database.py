@@ -256,6 +256,7 @@ class MARDatabase:
                 if meta.get("format") != INDEX_FORMAT:
                     raise KeyError("format")
                 arrays = {name: data[name] for name in ARRAYS}
+            skeleton = skeleton_from_dict(meta["skeleton"])
         except FileNotFoundError:
             raise TransferError(f"MAR index {path} does not exist; build it with "
                                 "`emotive transfer --build-index`") from None
@@ -265,7 +266,7 @@ class MARDatabase:
         return cls(
             config=MARConfig.from_dict(meta["config"]), groups=tuple(meta["groups"]),
             class_style=tuple(meta["class_style"]), clip_names=tuple(meta["clip_names"]),
-            skeleton=skeleton_from_dict(meta["skeleton"]), **arrays,
+            skeleton=skeleton, **arrays,
         )
 
 
