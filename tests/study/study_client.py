@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import uuid
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import httpx
@@ -64,3 +65,13 @@ def client_for(url: str) -> httpx.Client:
 
 def admin_headers() -> dict[str, str]:
     return {"Authorization": f"Bearer {ADMIN}"}
+
+
+def set_limits(folder: Path, **limits: float) -> None:
+    """Set ``[limits]`` keys of the study folder's ``study.toml`` (before its server starts)."""
+    text = (folder / "study.toml").read_text()
+    for key, value in limits.items():
+        head, _, tail = text.partition(f"\n{key} = ")
+        assert tail, f"no {key} in study.toml"
+        text = f"{head}\n{key} = {value}{tail[tail.index(chr(10)):]}"
+    (folder / "study.toml").write_text(text)

@@ -262,7 +262,7 @@ def test_a_server_that_goes_away_stops_the_run_cleanly(study_folder, tmp_path):
         def run() -> None:
             try:
                 result["summary"] = run_simulation(study, url, 400, 4, seed=2, receipts=receipts,
-                                                   progress=False, gone_after=1.0)
+                                                   progress=False, deadline=1.0)
             except BaseException as exc:  # reported below
                 result["error"] = exc
 
@@ -275,7 +275,8 @@ def test_a_server_that_goes_away_stops_the_run_cleanly(study_folder, tmp_path):
     thread.join(HANG_SECONDS)
     assert not thread.is_alive() and "error" not in result, result
     summary = result["summary"]
-    assert summary["server_gone"] is True
+    assert summary["server_gone"] is True and summary["deadline_s"] == 1.0
+    assert "no reply" in summary["gave_up"] and summary["gave_up"].endswith("for 1 s")
     assert summary["submissions"] >= 24 and 0 < summary["completed"] < 400
     lines = _receipts(receipts)
     assert len(lines) == summary["submissions"]
@@ -296,7 +297,7 @@ def test_no_server_a_bad_url_another_study_or_bad_receipts_are_study_errors(stud
     study = load_study(study_folder)
     url = f"http://127.0.0.1:{_free_port()}"
     with pytest.raises(StudyError, match=r"no study server at .*emotive study serve"):
-        run_simulation(study, url, 2, 1, seed=0, progress=False)
+        run_simulation(study, url, 2, 1, seed=0, progress=False, deadline=0.2)
     for bad in ("127.0.0.1:8000", "ftp://127.0.0.1", "http://", "http://h/?a=1"):
         with pytest.raises(StudyError, match="--url"):
             run_simulation(study, bad, 2, 1, seed=0, progress=False)

@@ -3,11 +3,12 @@ on SQLite and on PostgreSQL; then the analysis of the whole study.
 
 The server (``emotive study serve``) and 30 concurrent simulated participants
 (``emotive study simulate``) run as separate processes, as a user runs them. Once the server
-has stored responses, it is killed with SIGKILL; the simulation notices, stops and prints its
-summary. A new server on the same database takes 10 more participants. The export must then
-hold every submission the server acknowledged exactly once (the receipts each simulation wrote
-after a confirmation), plus at most the submissions that were in flight at the kill, and
-``analyze`` must report the Anderson-Darling test and flag the careless raters.
+has stored responses, it is killed with SIGKILL; the simulation waits for it until its
+``--deadline``, then prints its summary and gives up in one error line. A new server on the
+same database takes 10 more participants. The export must then hold every submission the
+server acknowledged exactly once (the receipts each simulation wrote after a confirmation),
+plus at most the submissions that were in flight at the kill, and ``analyze`` must report the
+Anderson-Darling test and flag the careless raters.
 
 Waits are on observable state (printed URLs, the health counter, process exits); wall time
 only bounds a hang.
@@ -32,6 +33,8 @@ import pytest
 HANG_SECONDS = 300.0
 #: Stored values at which the server is killed (30 participants store 600 in all).
 KILL_AFTER = 120
+#: Seconds the first simulation waits for the killed server (its ``--deadline``).
+DEADLINE = 3.0
 #: The command line of emotive, in this interpreter.
 EMOTIVE = [sys.executable, "-c", "from emotive.cli import main; main()"]
 
@@ -56,7 +59,7 @@ def _simulate(folder: Path, url: str, n: int, seed: int, receipts: Path) -> subp
     return subprocess.Popen(
         [*EMOTIVE, "study", "simulate", str(folder), "--url", url, "--participants", str(n),
          "--concurrency", str(n), "--seed", str(seed), "--careless", "0.2",
-         "--receipts", str(receipts)],
+         "--receipts", str(receipts), "--deadline", str(DEADLINE)],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
@@ -67,10 +70,12 @@ def _stored(url: str) -> int:
         return -1
 
 
-def _summary(proc: subprocess.Popen) -> dict:
+def _summary(proc: subprocess.Popen, code: int = 0) -> dict:
     out, err = proc.communicate(timeout=HANG_SECONDS)
-    assert proc.returncode == 0, err[-3000:]
+    assert proc.returncode == code, err[-3000:]
     assert "Traceback" not in err, err[-3000:]
+    errors = [line for line in err.splitlines() if line.startswith("error:")]
+    assert len(errors) == (code != 0), err[-3000:]
     return json.loads(out.strip().splitlines()[-1])
 
 
@@ -95,8 +100,8 @@ def test_sigkill_mid_study_loses_no_acknowledged_response(study_folder, db_url, 
         assert time.monotonic() < deadline, "the server stored too little"
     server.send_signal(signal.SIGKILL)
     server.wait(HANG_SECONDS)
-    one = _summary(first)
-    assert one["server_gone"] is True
+    one = _summary(first, code=2)  # gave up at its deadline: the summary, then one error line
+    assert one["server_gone"] is True and "no reply" in one["gave_up"]
     assert 0 < one["acknowledged"] < 600
 
     server, url = _serve(study_folder, db_url, log)

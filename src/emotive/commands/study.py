@@ -134,10 +134,18 @@ def simulate(
     receipts: Annotated[Path | None, typer.Option(
         "--receipts", help="Write one JSON line per acknowledged submission here.",
         show_default=False)] = None,
+    deadline: Annotated[float, typer.Option(
+        "--deadline", min=0.001, help="Seconds to wait for a server that does not answer (or "
+        "answers 502/503/504: restarting, or its database cannot store) before giving up; "
+        "retries back off from 0.05 s to 2 s.")] = 60.0,
 ) -> None:
-    """Simulated participants through the study's HTTP API; prints one JSON summary line."""
+    """Simulated participants through the study's HTTP API; prints one JSON summary line.
+
+    Giving up at the deadline mid-run prints the summary, then one error line (exit 2).
+    """
     try:
         from emotive.study.config import load_study
+        from emotive.study.errors import ServerUnavailable
         from emotive.study.simulate import run_simulation
         from emotive.study.stimuli import load_readings
     except ModuleNotFoundError as exc:
@@ -145,8 +153,15 @@ def simulate(
     study = load_study(folder)
     summary = run_simulation(study, url, participants, concurrency, seed, careless=careless,
                              readings=load_readings(study.folder), receipts=receipts,
-                             progress=sys.stderr.isatty())
+                             progress=sys.stderr.isatty(), deadline=deadline,
+                             notify=lambda line: typer.echo(f"emotive study simulate: {line}",
+                                                            err=True))
     typer.echo(json.dumps(summary))
+    if summary["server_gone"]:
+        raise ServerUnavailable(
+            f"gave up on the study server at {url} ({summary['gave_up']}); the summary line "
+            f"counts the {summary['acknowledged']} values it acknowledged: bring the server "
+            "back and simulate again, or give a longer --deadline")
 
 
 @app.command("export")

@@ -15,9 +15,11 @@ classifier's reading of each), and by default ``study.db`` (SQLite in WAL mode).
 * :mod:`emotive.study.db` and :mod:`emotive.study.store` keep participants and responses
   (SQLAlchemy 2, Alembic migrations; SQLite or PostgreSQL);
 * :mod:`emotive.study.app` is the HTTP server (FastAPI): participant page, participant API,
-  admin API;
+  admin API; :mod:`emotive.study.faults` tells its storage faults (answered 503) from bugs
+  and keeps what ``/api/health`` reports;
 * :mod:`emotive.study.simulate`, :mod:`emotive.study.export` and :mod:`emotive.study.analyze`
-  are the commands ``emotive study simulate|export|analyze``.
+  are the commands ``emotive study simulate|export|analyze``; :mod:`emotive.study.simulate_wait`
+  is how the simulation retries and waits for its server until its deadline.
 
 Nothing is imported here: the server's and the statistics' libraries load with the module
 that needs them.

@@ -11,12 +11,18 @@ Security: a participant is known only by the bearer token in the ``Authorization
 body is size-limited and strictly typed; submissions and joins are rate limited per
 participant and per client address; responses carry ``Cache-Control: no-store`` and a
 content security policy that keeps the page from loading anything off the host.
+
+Storage faults (:mod:`emotive.study.faults`): a request the database cannot serve now (full,
+read-only, unreachable) is answered ``503`` with a one-line reason and ``Retry-After``, and
+``/api/health`` answers ``503 {"status": "degraded", ...}`` until a write succeeds again.
 """
 
 from __future__ import annotations
 
+import asyncio
 import hmac
 import json
+import logging
 import re
 from collections import OrderedDict
 from collections.abc import Awaitable, Callable
@@ -26,6 +32,7 @@ from typing import Any
 from fastapi import FastAPI, Request
 from fastapi.responses import FileResponse, JSONResponse, Response
 from fastapi.staticfiles import StaticFiles
+from sqlalchemy import exc as sa_exc
 from starlette.concurrency import run_in_threadpool
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
@@ -34,6 +41,7 @@ from emotive.study import store
 from emotive.study.config import StudyConfig, load_study
 from emotive.study.db import backend_name, open_database
 from emotive.study.export import export_csv
+from emotive.study.faults import RETRY_AFTER_S, WriteHealth, probe_write, storage_fault
 from emotive.study.stimuli import stimulus_effectors
 from emotive.study.store import Participant, Rejected
 
@@ -58,6 +66,10 @@ SECURITY_HEADERS = {
 STUDY_STATIC = Path(__file__).with_name("static")
 SERVE_STATIC = Path(__file__).parents[1] / "serve" / "static"
 SUBMISSION_KEYS = {"item", "stimulus", "answers", "rt_ms"}
+
+logger = logging.getLogger("emotive.study")
+#: Database errors that may be storage faults (:func:`emotive.study.faults.storage_fault`).
+DATABASE_ERRORS = (sa_exc.DBAPIError, sa_exc.TimeoutError)
 
 
 def _reject_constant(name: str) -> float:
@@ -146,6 +158,44 @@ class StudyState:
         self.effectors = {s.id: stimulus_effectors(study.stimulus_path(s.id))
                           for s in study.stimuli}
         self.checks = {c.id: c for c in study.checks}
+        self.health = WriteHealth()
+        self.probing = asyncio.Lock()
+
+    async def probe(self) -> None:
+        """Make the health check's test write when one is due (one at a time)."""
+        if not self.health.probe_due() or self.probing.locked():
+            return
+        async with self.probing:
+            try:
+                await run_in_threadpool(probe_write, self.engine)
+            except DATABASE_ERRORS as exc:
+                fault = storage_fault(exc)
+                if fault is None:
+                    raise
+                self.health.failed(fault, "the health check's test write", refused=False)
+            else:
+                self.health.wrote()
+
+    async def health_json(self) -> JSONResponse:
+        """``GET /api/health``'s reply: 200 when the database takes writes, else 503."""
+        await self.probe()
+        joined: int | None = None
+        stored: int | None = None
+        try:
+            joined, stored = await run_in_threadpool(store.counts, self.engine)
+        except DATABASE_ERRORS as exc:
+            fault = storage_fault(exc)
+            if fault is None:
+                raise
+            self.health.failed(fault, "GET /api/health", refused=False)
+        fault = self.health.fault
+        body = {"status": "ok" if fault is None else "degraded", "writable": fault is None,
+                "reason": None if fault is None else fault.reason,
+                "database": backend_name(self.engine), "participants": joined,
+                "responses": stored, "version": API_VERSION}
+        if fault is None:
+            return JSONResponse(body)
+        return JSONResponse(body, status_code=503, headers={"Retry-After": str(RETRY_AFTER_S)})
 
     async def participant(self, request: Request) -> Participant:
         """The participant whose token the request carries (:class:`Rejected` 401 if none)."""
@@ -184,10 +234,8 @@ def _participant_routes(app: FastAPI, state: StudyState) -> None:
     study = state.study
 
     @app.get("/api/health")
-    async def health() -> dict[str, Any]:
-        joined, stored = await run_in_threadpool(store.counts, state.engine)
-        return {"status": "ok", "database": backend_name(state.engine),
-                "participants": joined, "responses": stored, "version": API_VERSION}
+    async def health() -> JSONResponse:
+        return await state.health_json()
 
     @app.get("/api/study")
     async def study_info() -> dict[str, Any]:
@@ -206,6 +254,7 @@ def _participant_routes(app: FastAPI, state: StudyState) -> None:
         if not isinstance(body, dict) or set(body) != {"consent"} or body["consent"] is not True:
             raise Rejected(422, 'joining needs consent: send {"consent": true}')
         token, who = await run_in_threadpool(store.join, state.engine, study)
+        state.health.wrote()
         return {"token": token, "participant": who.public_id, "condition": who.condition,
                 "items": len(who.plan.items)}
 
@@ -238,6 +287,8 @@ def _participant_routes(app: FastAPI, state: StudyState) -> None:
         outcome, stored = await run_in_threadpool(store.submit, state.engine, study, who, key,
                                                   item, sid, answers, rt_ms)
         replayed = outcome is store.Outcome.REPLAYED
+        if not replayed:
+            state.health.wrote()
         return JSONResponse({"item": item, "stored": stored, "replayed": replayed},
                             status_code=200 if replayed else 201)
 
@@ -245,6 +296,7 @@ def _participant_routes(app: FastAPI, state: StudyState) -> None:
     async def complete(request: Request) -> dict[str, str]:
         who = await state.participant(request)
         code = await run_in_threadpool(store.complete, state.engine, study, who)
+        state.health.wrote()
         return {"completion_code": code}
 
 
@@ -274,6 +326,7 @@ def _admin_routes(app: FastAPI, state: StudyState) -> None:
                            '"reason": TEXT}')
         await run_in_threadpool(store.set_excluded, state.engine, body["participant"],
                                 body["excluded"], body.get("reason", ""))
+        state.health.wrote()
         return {"participant": body["participant"], "excluded": body["excluded"]}
 
     @app.get("/api/admin/export.csv")
@@ -288,10 +341,21 @@ def _error(status: int, message: str, headers: dict[str, str] | None = None) -> 
     return JSONResponse({"error": message}, status_code=status, headers=headers)
 
 
-def _handlers(app: FastAPI) -> None:
+def _handlers(app: FastAPI, state: StudyState) -> None:
     @app.exception_handler(Rejected)
     async def rejected(_request: Request, exc: Rejected) -> JSONResponse:
-        return _error(exc.status, str(exc))
+        wait = None if exc.retry_after is None else {"Retry-After": f"{exc.retry_after:.0f}"}
+        return _error(exc.status, str(exc), wait)
+
+    @app.exception_handler(sa_exc.DBAPIError)
+    @app.exception_handler(sa_exc.TimeoutError)
+    async def storage(request: Request, exc: Exception) -> JSONResponse:
+        fault = storage_fault(exc)
+        if fault is None:
+            raise exc  # a bug: the JSON 500 of the `headers` middleware, traceback logged
+        state.health.failed(fault, f"{request.method} {request.url.path}")
+        return _error(503, f"{fault.reason}; nothing was stored: send it again in "
+                      f"{RETRY_AFTER_S} s", {"Retry-After": str(RETRY_AFTER_S)})
 
     @app.exception_handler(StarletteHTTPException)
     async def http_error(_request: Request, exc: StarletteHTTPException) -> JSONResponse:
@@ -302,7 +366,14 @@ def _handlers(app: FastAPI) -> None:
     @app.middleware("http")
     async def headers(request: Request, call_next: Callable[[Request], Awaitable[Response]]
                       ) -> Response:
-        reply = await call_next(request)
+        try:
+            reply = await call_next(request)
+        except Exception:
+            # A bug: its traceback in the log, a JSON 500 to the client, and the connection
+            # kept (left to uvicorn, the reply would be plain text and the connection closed
+            # under the client's next request).
+            logger.exception("%s %s failed", request.method, request.url.path)
+            reply = _error(500, "the server failed on this request; its log has the details")
         reply.headers.update(SECURITY_HEADERS)
         if request.url.path.startswith("/api/"):
             reply.headers["Cache-Control"] = "no-store"
@@ -329,7 +400,7 @@ def create_app(folder: str | Path, db_url: str | None = None,
     app = FastAPI(title=f"emotive study: {study.title}", docs_url=None, redoc_url=None,
                   openapi_url=None)
     app.state.study = state
-    _handlers(app)
+    _handlers(app, state)
     _participant_routes(app, state)
     _admin_routes(app, state)
 

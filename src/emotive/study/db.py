@@ -7,7 +7,8 @@ to the newest revision before use.
 * **SQLite** (default, ``DIR/study.db``): WAL journal, ``synchronous=FULL`` (a committed
   response is in the WAL file on disk before the reply is sent, so neither a killed server nor
   a power cut loses an acknowledged answer), foreign keys on, a 30 s busy timeout.
-* **PostgreSQL** by URL (``postgresql://user@host/db``, driven by psycopg 3).
+* **PostgreSQL** by URL (``postgresql://user@host/db``, driven by psycopg 3), connections
+  checked before use and opened within :data:`CONNECT_TIMEOUT_S`.
 
 What is stored: no personal data. A participant is a random public id, the SHA-256 of their
 token, their join order, condition and plan; a response is the item, stimulus, question and
@@ -50,6 +51,8 @@ from emotive.study.errors import StudyError
 
 #: The database file of a study folder when no ``--db`` is given.
 DEFAULT_DB_FILE = "study.db"
+#: Seconds a PostgreSQL connection may take to open (then it is a storage fault: 503).
+CONNECT_TIMEOUT_S = 10
 #: The newest migration (``migrations/versions``).
 HEAD_REVISION = "0001"
 
@@ -163,8 +166,10 @@ def make_engine(url: str, pool_size: int = 8) -> Engine:
                                    connect_args={"check_same_thread": False, "timeout": 30})
             event.listen(engine, "connect", _sqlite_pragmas)
             return engine
+        given = "connect_timeout" in make_url(url).query  # the URL's own setting wins
         return create_engine(url, pool_size=pool_size, max_overflow=pool_size,
-                             pool_pre_ping=True)
+                             pool_pre_ping=True,
+                             connect_args={} if given else {"connect_timeout": CONNECT_TIMEOUT_S})
     except ImportError as exc:
         raise StudyError(f"the database driver for {make_url(url).drivername} is missing "
                          f"({exc}); install it with: pip install 'emotive[study]'") from None

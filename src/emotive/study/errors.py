@@ -11,3 +11,7 @@ class StudyError(EmotiveError):
 
 class StudyConfigError(StudyError, ConfigError):
     """A ``study.toml`` with a missing or bad key or value."""
+
+
+class ServerUnavailable(StudyError):
+    """The study server did not answer, or could not store, within the simulation's deadline."""

@@ -12,12 +12,19 @@ classifier's reading of each stimulus with rater noise and pass the attention ch
 participant index in the simulation, item)``.
 
 **Reliability.** A request that gets no reply (a connection error or timeout), a 5xx or a 429
-is sent again, a submission with the *same* ``Idempotency-Key`` and body, after a backoff
-(``Retry-After`` for a 429), so a retried submission is stored once; a replayed reply
-(``200 "replayed": true``) acknowledges it. Once every request has failed for ``gone_after``
-seconds with no reply in between, the server is taken as gone: every participant stops and
-the summary says ``"server_gone": true``. Only values the server confirmed are counted
-(``acknowledged``) and written to the receipts file.
+is sent again, a submission with the *same* ``Idempotency-Key`` and body, so a retried
+submission is stored once; a replayed reply (``200 "replayed": true``) acknowledges it. The
+wait before a retry grows from :data:`FIRST_BACKOFF` to :data:`MAX_BACKOFF` (doubling),
+jittered by a generator seeded from ``(seed, participant)``, and is at least the server's
+``Retry-After`` (429, 503). No reply, 502, 503 and 504 are what a restarting server, a full
+disk or a lost database give: such a request is retried until it has failed for ``deadline``
+seconds (default :data:`DEFAULT_DEADLINE`, longer than a server restart). Then the run gives
+up: every participant stops and the summary says ``"server_gone": true`` and why
+(``gave_up``). Any other 5xx is a server bug, tried :data:`MAX_SERVER_ERRORS` times. Waiting
+for the server to start is the same: it is asked for the study until ``deadline``, then
+:class:`~emotive.study.errors.ServerUnavailable`. Each wait that lasted a second or more is
+reported (``notify`` and the summary's ``waits``). Only values the server confirmed are
+counted (``acknowledged``) and written to the receipts file.
 """
 
 from __future__ import annotations
@@ -50,35 +57,24 @@ from emotive.study.simulate_raters import (
     rater_for,
     stimulus_reading,
 )
+from emotive.study.simulate_wait import (
+    DEFAULT_DEADLINE,
+    REQUEST_TIMEOUT,
+    TRANSIENT,
+    Notify,
+    Waits,
+    backoff,
+    base_url,
+    no_reply,
+    reason_of,
+    retry_after,
+    wait_for_server,
+)
 
-#: Seconds a request may wait for a reply at least (longer when ``gone_after`` is longer).
-REQUEST_TIMEOUT = 10.0
-#: First retry delay, seconds; doubled per retry up to :data:`MAX_BACKOFF`.
-FIRST_BACKOFF = 0.05
-#: Longest retry delay, seconds.
-MAX_BACKOFF = 2.0
-#: Longest wait a ``Retry-After`` header is honoured for, seconds.
-MAX_RETRY_AFTER = 30.0
-#: Tries of a request answered 5xx while the server otherwise answers (then it is refused).
+#: Tries of a request answered another 5xx (a server bug; then it is refused).
 MAX_SERVER_ERRORS = 20
-#: Seconds between checks of whether the server is gone.
+#: Seconds between checks of the deadline.
 WATCH_INTERVAL = 0.1
-def base_url(url: str) -> str:
-    """The server's base URL without a trailing ``/``.
-
-    Raises:
-        StudyError: not an ``http://`` or ``https://`` URL with a host.
-    """
-    fix = "give the study server's address, e.g. --url http://127.0.0.1:8000"
-    try:
-        parsed = httpx.URL(url)
-    except (httpx.InvalidURL, TypeError) as exc:
-        raise StudyError(f"--url {url!r} is not a URL ({exc}); {fix}") from None
-    if parsed.scheme not in ("http", "https") or not parsed.host:
-        raise StudyError(f"--url {url!r} is not an http(s) URL with a host; {fix}")
-    if parsed.query or parsed.fragment:
-        raise StudyError(f"--url {url!r} has a query or fragment; {fix}")
-    return str(parsed).rstrip("/")
 
 
 class _Gone(Exception):
@@ -98,54 +94,23 @@ class _Stats:
     latencies_ms: list[float] = field(default_factory=list)
 
 
-def _reason(reply: httpx.Response) -> str:
-    try:
-        return str(reply.json().get("error", ""))[:200]
-    except (ValueError, AttributeError):
-        return reply.text[:200]
-
-
-def _retry_after(reply: httpx.Response | None) -> float | None:
-    if reply is None or reply.status_code != 429:
-        return None
-    try:
-        return min(max(float(reply.headers.get("retry-after", "")), 0.0), MAX_RETRY_AFTER)
-    except ValueError:
-        return None
-
-
 class _Run:
     """One simulation: the shared client, counters, the server-gone watch and the receipts."""
 
     def __init__(self, client: httpx.AsyncClient, study: StudyConfig, seed: int,
-                 careless: float, readings: Mapping[str, Any] | None, gone_after: float,
+                 careless: float, readings: Mapping[str, Any] | None, waits: Waits,
                  receipts: IO[str] | None, bar: _Bar) -> None:
         self.client, self.study, self.seed, self.careless = client, study, seed, careless
-        self.readings, self.gone_after, self.receipts, self.bar = (readings, gone_after,
-                                                                   receipts, bar)
+        self.readings, self.waits, self.receipts, self.bar = readings, waits, receipts, bar
         self.stats = _Stats()
         self.gone = asyncio.Event()
-        self.failing_since: float | None = None
         self.started = time.perf_counter()
         self._checks: dict[str, dict[int, AttentionCheck]] = {}
 
-    # -- the server-gone watch -----------------------------------------------------------------
-
-    def _alive(self) -> None:
-        self.failing_since = None
-
-    def _failed(self) -> None:
-        now = time.monotonic()
-        if self.failing_since is None:
-            self.failing_since = now
-        elif now - self.failing_since >= self.gone_after:
-            self.gone.set()
-
     async def watch(self) -> None:
-        """Set :attr:`gone` once requests have failed for ``gone_after`` seconds."""
+        """Set :attr:`gone` once a request has failed for the deadline."""
         while not self.gone.is_set():
-            since = self.failing_since
-            if since is not None and time.monotonic() - since >= self.gone_after:
+            if self.waits.expired():
                 self.gone.set()
                 return
             await asyncio.sleep(WATCH_INTERVAL)
@@ -161,7 +126,7 @@ class _Run:
             The reply and the seconds its request took.
 
         Raises:
-            _Gone: the server went away.
+            _Gone: the run gave up (a request failed for the deadline).
         """
         headers = {}
         if token is not None:
@@ -169,39 +134,42 @@ class _Run:
         if key is not None:
             headers["Idempotency-Key"] = key
         server_errors = 0
-        for attempt in itertools.count():
-            if self.gone.is_set():
-                raise _Gone
-            reply: httpx.Response | None = None
-            start = time.perf_counter()
-            try:
-                reply = await self.client.request(method, path, json=body, headers=headers)
-            except httpx.TransportError:
-                self._failed()
-            else:
-                seconds = time.perf_counter() - start
-                if reply.status_code < 500 and reply.status_code != 429:
-                    self._alive()
-                    return reply, seconds
-                if reply.status_code == 429:
-                    self._alive()  # there, only busy
+        me = object()
+        try:
+            for attempt in itertools.count():
+                if self.gone.is_set():
+                    raise _Gone
+                reply: httpx.Response | None = None
+                start = time.perf_counter()
+                try:
+                    reply = await self.client.request(method, path, json=body, headers=headers)
+                except httpx.TransportError as exc:
+                    self.waits.failed(me, f"{method} {path}: {no_reply(exc)}")
                 else:
-                    self._failed()
-                    server_errors += 1
-                    if server_errors >= MAX_SERVER_ERRORS:
-                        return reply, seconds
-            self.stats.retries += 1
-            backoff = min(FIRST_BACKOFF * 2.0 ** min(attempt, 10), MAX_BACKOFF)
-            delay = _retry_after(reply)
-            wait = max(delay, backoff) if delay is not None else backoff
-            await asyncio.sleep(wait * float(jitter.uniform(0.5, 1.0)))
+                    seconds = time.perf_counter() - start
+                    status = reply.status_code
+                    if status in TRANSIENT:
+                        self.waits.failed(me, f"{method} {path}: {status} {reason_of(reply)}")
+                    else:
+                        self.waits.answered(me)  # there: a reply, a 429 (busy) or a bug
+                        if status < 500 and status != 429:
+                            return reply, seconds
+                        server_errors += status >= 500
+                        if server_errors >= MAX_SERVER_ERRORS:
+                            return reply, seconds
+                self.stats.retries += 1
+                pause = backoff(attempt, jitter)
+                delay = retry_after(reply)
+                await asyncio.sleep(pause if delay is None else max(delay, pause))
+        finally:
+            self.waits.answered(me)
         raise AssertionError("unreachable")  # pragma: no cover
 
     def refuse(self, what: str, reply: httpx.Response) -> None:
         """Count a refused request and keep the first reason."""
         self.stats.rejected += 1
         if self.stats.first_rejection is None:
-            self.stats.first_rejection = f"{what}: {reply.status_code} {_reason(reply)}"
+            self.stats.first_rejection = f"{what}: {reply.status_code} {reason_of(reply)}"
 
     # -- participants --------------------------------------------------------------------------
 
@@ -308,7 +276,9 @@ class _Run:
                 "participants": s.joined, "simulated": participants, "completed": s.completed,
                 "careless": sorted(s.careless), "rejected": s.rejected,
                 "first_rejection": s.first_rejection, "retries": s.retries,
-                "server_gone": self.gone.is_set(), "p50_ms": p50, "p99_ms": p99,
+                "server_gone": self.gone.is_set(), "gave_up": self.waits.gave_up,
+                "deadline_s": self.waits.deadline, "waits": self.waits.done,
+                "p50_ms": p50, "p99_ms": p99,
                 "responses_per_s": round(s.acknowledged / max(seconds, 1e-9), 2),
                 "seconds": round(seconds, 3)}
 
@@ -347,32 +317,6 @@ class _Bar:
             self.progress.update(self.task, submissions=submissions, rate=rate)
 
 
-async def _check_server(client: httpx.AsyncClient, study: StudyConfig, url: str) -> None:
-    start = f"start it with `emotive study serve {study.folder}`"
-    try:
-        reply = await client.get("/api/study")
-    except httpx.TransportError:
-        raise StudyError(f"no study server at {url}; {start}") from None
-    try:
-        info = reply.json() if reply.status_code == 200 else None
-    except ValueError:
-        info = None
-    if not isinstance(info, dict) or "title" not in info:
-        raise StudyError(f"{url} is not an emotive study server (GET /api/study answered "
-                         f"{reply.status_code}); check --url, or {start}")
-    if info.get("version") != 1:
-        raise StudyError(f"{url} speaks version {info.get('version')!r} of the study API, not 1; "
-                         "use the emotive that serves it")
-    if info["title"] != study.title:
-        raise StudyError(f"{url} serves the study {info['title']!r}, not {study.title!r} of "
-                         f"{study.folder}; give the --url of this study's server")
-    asked = [q.get("id") for q in info.get("questions") or () if isinstance(q, dict)]
-    if asked != [q.id for q in study.questions]:
-        raise StudyError(f"{url} asks the questions {asked}, not {[q.id for q in study.questions]}"
-                         f" of {study.folder}: it serves another version of the study; restart "
-                         "it on this folder")
-
-
 def _open_receipts(path: Path) -> IO[str]:
     try:
         return Path(path).open("a", encoding="utf-8")
@@ -403,21 +347,21 @@ async def _run_workers(run: _Run, participants: int, workers: int) -> None:
 
 
 def _check_arguments(participants: int, concurrency: int, careless: float,
-                     gone_after: float) -> None:
+                     deadline: float) -> None:
     if participants < 1:
         raise StudyError(f"--participants {participants}: give 1 or more")
     if concurrency < 1:
         raise StudyError(f"--concurrency {concurrency}: give 1 or more")
     if not 0.0 <= careless <= 1.0:
         raise StudyError(f"--careless {careless}: give a share from 0 to 1")
-    if not gone_after > 0:
-        raise StudyError(f"gone_after {gone_after}: give a positive number of seconds")
+    if not deadline > 0:
+        raise StudyError(f"--deadline {deadline:g}: give a positive number of seconds")
 
 
 async def simulate(study: StudyConfig, url: str, participants: int, concurrency: int,
                    seed: int, careless: float = 0.1, readings: Mapping[str, Any] | None = None,
                    receipts: Path | None = None, progress: bool = True,
-                   gone_after: float = 10.0,
+                   deadline: float = DEFAULT_DEADLINE, notify: Notify | None = None,
                    transport: httpx.AsyncBaseTransport | None = None) -> dict[str, Any]:
     """The coroutine of :func:`run_simulation` (same arguments and result).
 
@@ -431,21 +375,23 @@ async def simulate(study: StudyConfig, url: str, participants: int, concurrency:
         readings: see :func:`run_simulation`.
         receipts: see :func:`run_simulation`.
         progress: see :func:`run_simulation`.
-        gone_after: see :func:`run_simulation`.
+        deadline: see :func:`run_simulation`.
+        notify: see :func:`run_simulation`.
         transport: an httpx transport to send through instead of the network (tests).
     """
-    _check_arguments(participants, concurrency, careless, gone_after)
+    _check_arguments(participants, concurrency, careless, deadline)
     base = base_url(url)
     workers = min(concurrency, participants)
     limits = httpx.Limits(max_connections=workers, max_keepalive_connections=workers)
-    timeout = httpx.Timeout(max(REQUEST_TIMEOUT, gone_after))
+    waits = Waits(base, deadline, notify)
     async with httpx.AsyncClient(base_url=base, http1=True, http2=False, limits=limits,
-                                 timeout=timeout, transport=transport) as client:
-        await _check_server(client, study, base)
+                                 timeout=httpx.Timeout(REQUEST_TIMEOUT),
+                                 transport=transport) as client:
+        await wait_for_server(client, study, base, waits, seed)
         with contextlib.ExitStack() as stack:
             out = None if receipts is None else stack.enter_context(_open_receipts(receipts))
             bar = stack.enter_context(_Bar(participants, progress))
-            run = _Run(client, study, seed, careless, readings, gone_after, out, bar)
+            run = _Run(client, study, seed, careless, readings, waits, out, bar)
             await _run_workers(run, participants, workers)
             return run.summary(participants)
 
@@ -453,7 +399,8 @@ async def simulate(study: StudyConfig, url: str, participants: int, concurrency:
 def run_simulation(study: StudyConfig, url: str, participants: int, concurrency: int,
                    seed: int, careless: float = 0.1, readings: dict | None = None,
                    receipts: Path | None = None, progress: bool = True,
-                   gone_after: float = 10.0) -> dict[str, Any]:
+                   deadline: float = DEFAULT_DEADLINE, notify: Notify | None = None
+                   ) -> dict[str, Any]:
     """Send simulated participants through the study server at ``url`` (module docstring).
 
     Args:
@@ -469,8 +416,9 @@ def run_simulation(study: StudyConfig, url: str, participants: int, concurrency:
             ``{"participant", "index", "item", "stimulus", "values": {name: value}, "key"}``
             (``values`` as stored: a grid's two values on -1..1), flushed once confirmed.
         progress: show progress on stderr.
-        gone_after: seconds of failing requests, with no reply in between, after which the
-            server is taken as gone and the run stops.
+        deadline: seconds a request may go on failing (no reply, 502, 503, 504) before the
+            run gives up; also how long a server that is not up yet is waited for.
+        notify: called with one line when a wait begins (it lasted a second) and ends.
 
     Returns:
         The summary: ``acknowledged`` (values the server confirmed stored), ``submissions``
@@ -479,14 +427,16 @@ def run_simulation(study: StudyConfig, url: str, participants: int, concurrency:
         ``rejected`` (requests refused: a 4xx other than 429, or a 5xx after
         :data:`MAX_SERVER_ERRORS` tries, or a reply outside the protocol),
         ``first_rejection`` (its reason, or ``None``), ``retries`` (requests sent again),
-        ``server_gone``, ``p50_ms`` and ``p99_ms`` (milliseconds the confirmed submission's
-        request took; ``None`` without any), ``responses_per_s`` (acknowledged values per
-        second) and ``seconds`` (wall time of the run).
+        ``server_gone`` (the run gave up at the deadline), ``gave_up`` (why, one line, or
+        ``None``), ``deadline_s``, ``waits`` (each wait of a second or more: ``{"for": the
+        last request's failure, "seconds"}``), ``p50_ms`` and ``p99_ms`` (milliseconds the
+        confirmed submission's request took; ``None`` without any), ``responses_per_s``
+        (acknowledged values per second) and ``seconds`` (wall time of the run).
 
     Raises:
-        StudyError: a bad ``url`` or argument, no server at ``url``, or a server of another
-            study.
+        ServerUnavailable: no server answered at ``url`` within ``deadline``.
+        StudyError: a bad ``url`` or argument, or a server of another study.
     """
     return asyncio.run(simulate(study, url, participants, concurrency, seed, careless=careless,
                                 readings=readings, receipts=receipts, progress=progress,
-                                gone_after=gone_after))
+                                deadline=deadline, notify=notify))

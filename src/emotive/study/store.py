@@ -34,11 +34,18 @@ EXPORT_COLUMNS = ("participant", "condition", "stimulus", "question", "value", "
 
 
 class Rejected(StudyError):
-    """A request the protocol refuses; ``status`` is its HTTP status."""
+    """A request the protocol refuses; ``status`` is its HTTP status.
 
-    def __init__(self, status: int, message: str) -> None:
+    Args:
+        status: the HTTP status.
+        message: the one-line reason.
+        retry_after: seconds to send in ``Retry-After`` (a 503 that may succeed later).
+    """
+
+    def __init__(self, status: int, message: str, retry_after: float | None = None) -> None:
         super().__init__(message)
         self.status = status
+        self.retry_after = retry_after
 
 
 class Outcome(Enum):
@@ -118,7 +125,8 @@ def join(engine: Engine, study: StudyConfig) -> tuple[str, Participant]:
             return token, Participant(pid, public_id, index, plan.condition, plan, False)
         except IntegrityError:
             continue
-    raise Rejected(503, "the server is admitting many participants at once; try again")
+    raise Rejected(503, "the server is admitting many participants at once; try again in "
+                   "1 s", retry_after=1)
 
 
 def by_token(engine: Engine, token: str) -> Participant | None:

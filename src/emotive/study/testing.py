@@ -9,10 +9,13 @@ Example::
 from __future__ import annotations
 
 import asyncio
+import socket
 import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
+
+from fastapi import FastAPI
 
 from emotive.serve.server import base_url, bind, bound_port
 from emotive.study.app import create_app
@@ -32,7 +35,31 @@ def running_study_server(folder: str | Path, admin_token: str | None = None,
         StudyError: the server did not start.
     """
     app = create_app(folder, db_url=db_url, admin_token=admin_token)
-    sock = bind("127.0.0.1", 0)
+    try:
+        with serving(app) as url:
+            yield url
+    finally:
+        app.state.study.engine.dispose()
+
+
+@contextmanager
+def serving(app: FastAPI, sock: socket.socket | None = None) -> Iterator[str]:
+    """Serve a study app (:func:`~emotive.study.app.create_app`) until the block ends.
+
+    Args:
+        app: the app; its engine stays open (the caller disposes of it).
+        sock: a socket bound on 127.0.0.1, listening or not (its port is served, so a
+            server can stop and another start on the same address), or ``None`` for a free
+            port. It is closed when the block ends.
+
+    Yields:
+        The base URL, ``http://127.0.0.1:PORT``.
+
+    Raises:
+        StudyError: the server did not start.
+    """
+    sock = bind("127.0.0.1", 0) if sock is None else sock
+    port = bound_port(sock)
     server = study_uvicorn(app)
     failure: list[BaseException] = []
     started = threading.Event()
@@ -53,12 +80,11 @@ def running_study_server(folder: str | Path, admin_token: str | None = None,
     try:
         if not server.started:
             raise StudyError(f"the study server did not start: {failure or 'timed out'}")
-        yield base_url("127.0.0.1", bound_port(sock))
+        yield base_url("127.0.0.1", port)
     finally:
         server.should_exit = True
         thread.join(START_TIMEOUT)
         sock.close()
-        app.state.study.engine.dispose()
 
 
 def _wait_started(server: object, started: threading.Event) -> None:
