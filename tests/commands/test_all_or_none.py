@@ -97,7 +97,7 @@ def test_generate_whose_preview_fails_leaves_the_old_files(tmp_path, monkeypatch
     before = old_files(tmp_path, "w.bvh", "w.npz", "w.mp4")
     failing_encoder(monkeypatch)
     result = run(capsys, *GENERATE, "-o", tmp_path / "w.bvh", "--npz", tmp_path / "w.npz",
-                 "--preview", tmp_path / "w.mp4")
+                 "--preview", tmp_path / "w.mp4", "--force")
     assert_failed(*result, "w.mp4", "ffmpeg", "Conversion failed!")
     assert snapshot(tmp_path) == before
 
@@ -109,7 +109,7 @@ def test_generate_whose_second_rename_fails_puts_the_first_file_back(tmp_path, m
     before = old_files(tmp_path, "w.bvh", "w.npz", "w.gif")
     done = failing_rename(monkeypatch, tmp_path / "w.npz", fault)
     result = run(capsys, *GENERATE, "-o", tmp_path / "w.bvh", "--npz", tmp_path / "w.npz",
-                 "--preview", tmp_path / "w.gif")
+                 "--preview", tmp_path / "w.gif", "--force")
     assert tmp_path / "w.bvh" in done  # the first file was in place, and is put back
     if code == 2:
         assert_failed(*result, "cannot write", "w.npz", "input/output error")
@@ -120,7 +120,8 @@ def test_generate_whose_second_rename_fails_puts_the_first_file_back(tmp_path, m
 
 def test_generate_that_succeeds_replaces_every_old_file(tmp_path, capsys):
     before = old_files(tmp_path, "w.bvh", "w.npz")
-    code, _, err = run(capsys, *GENERATE, "-o", tmp_path / "w.bvh", "--npz", tmp_path / "w.npz")
+    code, _, err = run(capsys, *GENERATE, "-o", tmp_path / "w.bvh", "--npz", tmp_path / "w.npz",
+                       "--force")
     assert code in (0, None), err
     after = snapshot(tmp_path)
     assert sorted(after) == ["w.bvh", "w.npz"]
@@ -140,7 +141,7 @@ def test_deprecated_fcrbm_generate_whose_preview_fails_leaves_the_old_files(tmp_
     before = old_files(tmp_path, "f.bvh", "f.gif")
     failing_encoder(monkeypatch)
     result = run(capsys, "fcrbm", "generate", "--emotion", "sad", "--seconds", "1", "-o",
-                 tmp_path / "f.bvh", "--preview", tmp_path / "f.gif")
+                 tmp_path / "f.bvh", "--preview", tmp_path / "f.gif", "--force")
     assert_failed(*result, "f.gif", "ffmpeg")  # after the deprecation line
     assert snapshot(tmp_path) == before
 
@@ -150,7 +151,7 @@ def test_transfer_whose_preview_fails_leaves_the_old_files(tmp_path, monkeypatch
     before = old_files(tmp_path, "p.bvh", "p.gif")
     failing_encoder(monkeypatch)
     result = run(capsys, "transfer", clip, "--style", "proud", "--index", index, "-o",
-                 tmp_path / "p.bvh", "--preview", tmp_path / "p.gif")
+                 tmp_path / "p.bvh", "--preview", tmp_path / "p.gif", "--force")
     assert_failed(*result, "p.gif", "ffmpeg")
     assert snapshot(tmp_path) == before
 
@@ -160,7 +161,7 @@ def test_reconstruct_whose_preview_fails_leaves_the_old_files(tmp_path, monkeypa
     before = old_files(tmp_path, "r.bvh", "r.mp4")
     failing_encoder(monkeypatch)
     result = run(capsys, "reconstruct", clip, "-o", tmp_path / "r.bvh", "--preview",
-                 tmp_path / "r.mp4")
+                 tmp_path / "r.mp4", "--force")
     assert_failed(*result, "r.mp4", "ffmpeg")
     assert snapshot(tmp_path) == before
 
@@ -178,7 +179,7 @@ def test_features_whose_plot_meets_a_full_disk_leaves_the_old_files(tmp_path, mo
 
     monkeypatch.setattr(plots, "atomic_output", plot_on_a_full_disk)
     result = run(capsys, "features", clip, "-o", tmp_path / "f.csv", "--plot",
-                 tmp_path / "f.png")
+                 tmp_path / "f.png", "--force")
     assert_failed(*result, "f.png", "disk is full")
     assert snapshot(tmp_path) == before
 
@@ -192,7 +193,8 @@ def test_evaluate_whose_second_file_fails_to_move_in_leaves_the_old_report(tmp_p
                        "report.md", "notes.txt")
     done = failing_rename(monkeypatch, report / "intended_vs_perceived.png",
                           OSError(errno.EACCES, "Permission denied"))
-    result = run(capsys, "evaluate", "--model", clips, "--suite", "emotion", "--out", report)
+    result = run(capsys, "evaluate", "--model", clips, "--suite", "emotion", "--out", report,
+                 "--force")
     assert report / "confusion.png" in done
     assert_failed(*result, "intended_vs_perceived.png", "permission denied")
     assert snapshot(report) == before

@@ -23,7 +23,7 @@ from cli_helpers import run_main
     (["generate", "--model", "fcrbm", "--raw", "-o", "w.bvh"], ["--raw", "model 'fcrbm'",
                                                                  "--gibbs"]),
     (["generate", "--emotion", "valence=3,arousal=1", "-o", "w.bvh"],
-     ["valence=3 is outside -1.5..1.5", "old FCRBM 1..3 scale, subtract 2: valence=1"]),
+     ["valence=3 is outside -1..1", "old FCRBM 1..3 scale, subtract 2: valence=1"]),
     (["generate", "--no-such-flag"], ["--no-such-flag"]),
     (["reconstruct", "clip.bvh", "--role-map", "bandai", "-o", "r.bvh"], ["--role-map"]),
     (["generate", "--seed", "-1", "-o", "w.bvh"], ["--seed", "greater than or equal to 0"]),

@@ -126,29 +126,30 @@ def test_a_file_named_as_the_report_folder_is_one_error(tmp_path, capsys):
     assert taken.read_text() == "mine"
 
 
-def test_huge_weights_are_normalized_like_small_ones_in_generate(tmp_path, capsys):
-    huge, plain = tmp_path / "huge.bvh", tmp_path / "plain.bvh"
-    for out, emotion in ((huge, "happy=1e308,sad=1e308"), (plain, "happy=1,sad=1")):
+def test_proportional_weights_give_the_same_walk_as_normalized_ones(tmp_path, capsys):
+    half, plain = tmp_path / "half.bvh", tmp_path / "plain.bvh"
+    for out, emotion in ((half, "happy=0.5,sad=0.5"), (plain, "happy=1,sad=1")):
         code, _, err = run(capsys, "generate", "--seconds", "1", "-e", emotion, "-o", out)
         assert code == 0, err
-    assert huge.read_bytes() == plain.read_bytes()
+    assert half.read_bytes() == plain.read_bytes()
 
 
-def test_huge_weights_are_normalized_like_small_ones_in_transfer(tmp_path, capsys, index,
-                                                                  clip):
-    huge, plain = tmp_path / "huge.bvh", tmp_path / "plain.bvh"
+def test_proportional_weights_give_the_same_transfer_as_normalized_ones(tmp_path, capsys, index,
+                                                                        clip):
+    half, plain = tmp_path / "half.bvh", tmp_path / "plain.bvh"
     lines = []
-    for out, style in ((huge, "proud=1e308,sad=1e308"), (plain, "proud=1,sad=1")):
+    for out, style in ((half, "proud=0.5,sad=0.5"), (plain, "proud=1,sad=1")):
         code, stdout, err = run(capsys, "transfer", clip, "--style", style, "--index", index,
                                 "-o", out)
         assert code == 0, err
         lines.append(stdout)
-    assert huge.read_bytes() == plain.read_bytes()
-    assert "in style proud=0.5,sad=0.5;" in lines[0]
+    assert half.read_bytes() == plain.read_bytes()
+    assert "in style proud=0.5,sad=0.5;" in lines[1]
 
 
 @pytest.mark.parametrize("weights", ["happy=1e309,sad=1", "happy=inf", "happy=nan",
-                                     "happy=0,sad=0", "happy=-1e308,sad=1e308"])
+                                     "happy=0,sad=0", "happy=-1e308,sad=1e308",
+                                     "happy=1e308,sad=1e308", "happy=2"])
 def test_weights_not_finite_or_summing_to_zero_are_one_error_everywhere(tmp_path, capsys,
                                                                         index, clip, weights):
     result = run(capsys, "generate", "--seconds", "1", "-e", weights, "-o", tmp_path / "w.bvh")

@@ -124,7 +124,7 @@ def test_a_role_map_file_rebuilds_a_renamed_rig(tmp_path):
     ("case", "error", "words"),
     [
         ("suffix", OutputError, ("--out", "use a file ending in .bvh")),
-        ("missing", BVHError, ("missing.bvh", "no such file")),
+        ("missing", BVHError, ("missing.bvh", "does not exist")),
         ("not_bvh", BVHError, ("notes.bvh", "HIERARCHY")),
         ("nan", BVHError, ("nan.bvh", "NaN")),
         ("preview", OutputError, ("--preview", ".mp4 or .gif")),

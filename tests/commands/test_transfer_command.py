@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from emotive.commands.transfer import transfer
-from emotive.errors import BVHError, OutputError
+from emotive.errors import BVHError, EmotionError, OutputError
 from emotive.io.bvh import read_bvh, write_bvh
 from emotive.models.mar.config import TransferError
 from emotive.models.mar.representation import RigMappingError
@@ -75,13 +75,13 @@ def test_a_style_schedule_file_drives_the_style(walk_file, synthetic_index, tmp_
 @pytest.mark.parametrize(
     ("case", "error", "words"),
     [
-        ("style", TransferError, ("walk.bvh", "--style", "prout", "did you mean 'proud'")),
+        ("style", EmotionError, ("--style", "prout", "did you mean 'proud'")),
         ("rig", RigMappingError, ("renamed.bvh", "--roles")),
         ("short", TransferError, ("short.bvh", "2 frames", "at least 3")),
         ("nan", BVHError, ("nan.bvh", "NaN")),
         ("suffix", OutputError, ("--out", "use a file ending in .bvh")),
         ("action", TransferError, ("walk.bvh", "unknown action 'jump'", "walk, wave")),
-        ("both", TransferError, ("walk.bvh", "exactly one of --style and --style-schedule")),
+        ("both", EmotionError, ("walk.bvh", "exactly one of --style and --style-schedule")),
         ("index", TransferError, ("missing.npz", "--build-index")),
     ],
 )

@@ -139,12 +139,13 @@ def test_every_corrupt_variant_is_a_one_line_config_error(committed, tmp_path, n
 @pytest.mark.parametrize(("name", "args"), [
     ("gait", ["generate", "--seconds", "0.5", "--checkpoint"]),
     ("fcrbm", ["generate", "--model", "fcrbm", "--seconds", "0.5", "--checkpoint"]),
-    ("classifier", ["classify", "clip.bvh", "--model"]),
+    ("classifier", ["classify", "in/clip.bvh", "--model"]),
 ])
 def test_the_command_line_prints_one_error_line_and_exits_2(committed, tmp_path, monkeypatch,
                                                             capsys, name, args):
     folder = tmp_path / "in"
     folder.mkdir()
+    (folder / "clip.bvh").write_text("")  # classify checks that its clip exists first
     monkeypatch.chdir(tmp_path)
     for path, words in write_variants(name, committed[name], folder):
         extra = ["-o", tmp_path / "out.bvh"] if args[0] == "generate" else []

@@ -198,7 +198,7 @@ def test_cli(tmp_path, walker, monkeypatch, capsys):
     _, frames = read_video(out)
     assert frames.shape[1:] == (150, 200, 3) and len(frames) == 23
     monkeypatch.setattr(sys, "argv", ["emotive", "preview", str(clip), "--out", str(out),
-                                      "--path", "nowhere"])
+                                      "--path", "nowhere", "--force"])
     with pytest.raises(SystemExit) as exc:
         main()
     assert exc.value.code == 2 and "unknown path 'nowhere'" in capsys.readouterr().err

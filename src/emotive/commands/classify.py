@@ -11,7 +11,19 @@ from typing import Annotated
 
 import typer
 
-from emotive.commands.options import RolesOpt, UnitOpt, flag, positive, read_input
+from emotive.commands.options import (
+    RolesOpt,
+    UnitOpt,
+    flag,
+    input_file,
+    positive,
+    read_input,
+    role_joints,
+    roles_option,
+)
+
+#: Seconds per judged window when ``--window`` is not given.
+DEFAULT_WINDOW = 4.0
 
 ModelOpt = Annotated[
     Path | None,
@@ -25,8 +37,11 @@ def classify(
                                             show_default=False)],
     model: ModelOpt = None,
     window: Annotated[
-        float, typer.Option(help="Seconds per judged window (at least 0.8).", callback=positive)
-    ] = 4.0,
+        float | None,
+        typer.Option(help="Seconds per judged window: at least 0.8, at most the clip's length "
+                     f"(default {DEFAULT_WINDOW:g}, or the whole clip when it is shorter).",
+                     callback=positive, show_default=False)
+    ] = None,
     hop: Annotated[
         float, typer.Option(help="Seconds between windows.", callback=positive)
     ] = 1.0,
@@ -39,13 +54,32 @@ def classify(
     A window whose motion lies outside what the classifier was trained on is marked
     "unsure"; so is the clip when most of its windows are.
     """
+    from emotive.errors import ConfigError
+
+    input_file(file)
+    if model is not None:
+        input_file(model, "--model", None, ConfigError)
+    roles_option(roles)
+
     from rich.console import Console
     from rich.table import Table
 
-    from emotive.eval.classifier import EmotionClassifier, load_default_classifier
+    from emotive.eval.classifier import (
+        ClassifierError,
+        EmotionClassifier,
+        load_default_classifier,
+    )
 
     clf = EmotionClassifier.load(model) if model is not None else load_default_classifier()
     motion = read_input(file, unit)
+    role_joints(motion.skeleton, roles)
+    if window is None:
+        window = DEFAULT_WINDOW
+    elif window > motion.duration + 1e-9:
+        least = clf.config.min_seconds
+        raise ClassifierError(f"--window {window:g} s is longer than {file} ({motion.duration:.2f}"
+                              f" s); give a window from {least:g} s to the clip's "
+                              f"{motion.duration:.2f} s")
     judged = clf.judge(motion, window_seconds=window, hop_seconds=hop, role_map=roles)
     mean = judged.probabilities.mean(0)
     overall = "unsure" if judged.clip_unsure else clf.labels[int(mean.argmax())]

@@ -5,6 +5,7 @@ Heavy modules are imported inside the commands so that ``emotive --help`` stays 
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
 import typer
@@ -71,8 +72,15 @@ def fetch(
     from emotive.data.registry import get_dataset
     from emotive.data.store import fetch as fetch_dataset
     from emotive.data.store import is_cached, repair
+    from emotive.errors import DataError
 
     info = get_dataset(name)
+    if (source is not None and not source.startswith(("http://", "https://"))
+            and not Path(source).expanduser().exists()):
+        # Checked here, not only where the archive is read: a data set already in the cache
+        # would never read it, and the command would end well on a source that is not there.
+        raise DataError(f"--source {source} does not exist; check the path, or give the "
+                        "archive's URL")
     typer.echo(f"{info.title}: {info.attribution}")
     if is_cached(info) and not force:
         found = repair(info, source, progress=True)

@@ -17,7 +17,7 @@ from typing import Annotated
 
 import typer
 
-from emotive.commands.options import flag, out_option
+from emotive.commands.options import ForceOpt, flag, input_file, out_option
 
 app = typer.Typer(help="Export models for engines and other runtimes.", no_args_is_help=True,
                   add_completion=False)
@@ -48,18 +48,23 @@ def export_onnx_command(
         typer.Option("--weights", help="Gait checkpoint to export instead of the built-in "
                      "one (a last.pt or best.pt of `emotive train gait`).", show_default=False),
     ] = None,
+    force: ForceOpt = False,
 ) -> None:
     """Export gait agents' per-frame step to ONNX (dynamic batch of agents)."""
     from emotive.errors import ConfigError
     from emotive.io.outputs import check_output
-    from emotive.models.gait.model import load_gait_model
-    from emotive.models.gait.onnx_export import OPSET, export_onnx, graph_signature, require
-    from emotive.models.gait.step_export import export_agent_step
 
     if step not in ("agent", "network"):
         raise ConfigError(f"--step {step!r}: choose 'agent' (the whole step) or 'network' "
                           f"(the network alone)")
-    check_output(out, (".onnx",), "--out")
+    check_output(out, (".onnx",), "--out", force)
+    if weights is not None:
+        input_file(weights, "--weights", None, ConfigError)
+
+    from emotive.models.gait.model import load_gait_model
+    from emotive.models.gait.onnx_export import OPSET, export_onnx, graph_signature, require
+    from emotive.models.gait.step_export import export_agent_step
+
     require("onnx")
     model = load_gait_model(weights)
     if step == "agent":
@@ -93,11 +98,18 @@ def export_web_command(
     The page places agents, draws their paths, sets their emotions and offers WebXR AR/VR
     like the served app; onnxruntime-web runs the whole agent step in the page.
     """
+    from emotive.errors import ConfigError
+    from emotive.io.outputs import folder_name
+
+    folder = out.expanduser().absolute()
+    folder_name(out, "--out")
+    if weights is not None:
+        input_file(weights, "--weights", None, ConfigError)
+
     from emotive.models.gait.model import load_gait_model
     from emotive.models.gait.onnx_export import require
     from emotive.web.export import check_web_folder, export_web
 
-    folder = out.expanduser().absolute()
     check_web_folder(folder, force)
     require("onnx")
     model = load_gait_model(weights)

@@ -18,6 +18,7 @@ import typer
 from emotive.commands.options import (
     ConfigOpt,
     EpochsOpt,
+    ForceOpt,
     PreviewOpt,
     PrimerOpt,
     ResumeOpt,
@@ -39,12 +40,13 @@ def train(
     resume: ResumeOpt = False,
     seed: SeedOpt = 0,
     epochs: EpochsOpt = None,
+    force: ForceOpt = False,
 ) -> None:
     """Deprecated: `emotive train fcrbm`."""
     from emotive.commands.train import train_fcrbm_command
 
     deprecated("fcrbm train", "train fcrbm")
-    train_fcrbm_command(config, out, resume, seed, epochs)
+    train_fcrbm_command(config, out, resume, seed, epochs, force)
 
 
 @app.command("generate")
@@ -52,13 +54,11 @@ def generate(
     out: Annotated[Path, out_option("Output .bvh on the training rig.")],
     valence: Annotated[
         float | None,
-        typer.Option(help="Valence, -1 low .. 0 neutral .. 1 high (up to 1.5 exaggerates).",
-                     show_default=False),
+        typer.Option(help="Valence, -1 low .. 0 neutral .. 1 high.", show_default=False),
     ] = None,
     arousal: Annotated[
         float | None,
-        typer.Option(help="Arousal, -1 low .. 0 neutral .. 1 high (up to 1.5 exaggerates).",
-                     show_default=False),
+        typer.Option(help="Arousal, -1 low .. 0 neutral .. 1 high.", show_default=False),
     ] = None,
     emotion: Annotated[
         str | None,
@@ -88,6 +88,7 @@ def generate(
         typer.Option(help="'feet' (default) or 'model' root path.", show_default=False),
     ] = None,
     preview: PreviewOpt = None,
+    force: ForceOpt = False,
 ) -> None:
     """Deprecated: `emotive generate --model fcrbm`."""
     from emotive.commands.generate import run_generate
@@ -103,7 +104,9 @@ def generate(
     if (valence is None) != (arousal is None):
         raise EmotionError("give both --valence and --arousal (-1 low, 0 neutral, 1 high)")
     wanted: str | Path | None = schedule if schedule is not None else emotion
+    flag = given[0]
     if valence is not None:
         wanted = f"valence={valence!r},arousal={arousal!r}"
     run_generate("fcrbm", out, wanted, seconds, preview=preview, primer=primer, seed=seed,
-                 checkpoint=model, gibbs=gibbs, root=root)
+                 checkpoint=model, force=force, flags={"emotion": flag, "checkpoint": "--model"},
+                 gibbs=gibbs, root=root)

@@ -25,22 +25,34 @@ from typing import TYPE_CHECKING, Annotated, Any
 import typer
 
 from emotive.commands.options import (
+    MOTION_OUT,
     EmotionOpt,
     EmotionScheduleOpt,
+    ForceOpt,
     PreviewOpt,
     PrimerOpt,
     SecondsOpt,
     SeedOpt,
     UnitOpt,
+    emotion_option,
     flag,
+    input_file,
     out_option,
     read_input,
+    role_joints,
+    roles_option,
 )
 
 if TYPE_CHECKING:
     from emotive.core.motion import Motion
     from emotive.core.skeleton import Skeleton
     from emotive.models.api import Generated
+
+#: Suffixes ``--out`` takes (``emotive.render.outputs.OUT_SUFFIXES``, repeated so that the
+#: checks import no torch; a test checks that the two agree).
+GENERATE_OUT = (*MOTION_OUT, ".npz")
+#: The shapes ``--path`` names (``emotive.paths.SHAPES``, repeated likewise).
+PATH_SHAPES = ("line", "circle", "figure8", "zigzag")
 
 #: The flag of each model option (registry name -> command line).
 FLAGS = {"raw": "--raw", "gibbs": "--gibbs", "root": "--root", "workers": "--workers",
@@ -104,16 +116,80 @@ def on_rig(generated: Generated, rig: Motion, rig_roles: str | None) -> Generate
     return replace(generated, motion=motion, path=path)
 
 
+def path_option(path: str | None) -> None:
+    """Fail fast on a ``--path`` that is no shape and no waypoint file that exists.
+
+    Raises:
+        PathError: naming the value and the fix.
+    """
+    from emotive.errors import PathError
+
+    if path is None or path in PATH_SHAPES:
+        return
+    if not (path.endswith(".json") or Path(path).exists()):
+        raise PathError(f"--path: unknown path {path!r}: use one of {', '.join(PATH_SHAPES)} or "
+                        "a JSON file of [x, z] waypoints in metres")
+    input_file(Path(path), "--path", None, PathError)
+
+
+def check_request(model: str, out: Path, emotion: str | Path | None, path: str | None,
+                  npz: Path | None, preview: Path | None, primer: Path | None,
+                  checkpoint: Path | None, rig: Path | None, rig_roles: str | None,
+                  primer_roles: str | None, force: bool, options: dict[str, Any],
+                  flags: dict[str, str]) -> None:
+    """Every check of ``emotive generate`` that needs no model: outputs, files, emotion, flags.
+
+    Imports no torch, so that a mistake is answered at once (arguments as for
+    :func:`run_generate`; ``options`` the model options given, ``flags`` the command-line
+    spelling of the emotion and checkpoint options).
+
+    Raises:
+        EmotiveError: the first mistake, in one line naming it.
+    """
+    from emotive.errors import ConfigError
+    from emotive.io.outputs import PREVIEW_SUFFIXES, check_distinct, check_output
+    from emotive.models.registry import ModelError, get_model
+
+    check_output(out, GENERATE_OUT, "--out", force)
+    if npz is not None:
+        check_output(npz, (".npz",), "--npz", force)
+    if preview is not None:
+        check_output(preview, PREVIEW_SUFFIXES, "--preview", force)
+    check_distinct([("--out", out), ("--npz", npz), ("--preview", preview)])
+    entry = get_model(model)
+    unknown = [FLAGS.get(k, k) for k in options if k not in entry.option_names]
+    if unknown:
+        takes = ", ".join(FLAGS.get(k, k) for k in entry.option_names) or "no model flags"
+        raise ModelError(f"{' and '.join(unknown)}: model {model!r} does not take "
+                         f"{'them' if len(unknown) > 1 else 'it'}; it takes {takes}")
+    if "generator" not in entry.kinds:
+        raise ModelError(f"--model {model}: it makes no new motion (it is a "
+                         f"{', '.join(entry.kinds)}); use one of the generators")
+    if checkpoint is not None and not checkpoint.is_file():
+        raise ConfigError(f"{flags['checkpoint']} {checkpoint}: checkpoint not found, the file "
+                          f"{'is a folder' if checkpoint.is_dir() else 'does not exist'}; "
+                          "check the path")
+    path_option(path)
+    for option, file in (("--primer", primer), ("--rig", rig)):
+        if file is not None:
+            input_file(file, option)
+    roles_option(rig_roles, "--rig-roles")
+    roles_option(primer_roles, "--primer-roles")
+    if emotion is not None:
+        emotion_option(emotion, flags["emotion"])
+
+
 def run_generate(model: str, out: Path, emotion: str | Path | None, seconds: float,
                  path: str | None = None, npz: Path | None = None, preview: Path | None = None,
                  primer: Path | None = None, seed: int = 0, checkpoint: Path | None = None,
                  unit: str = "auto", rig: Path | None = None, rig_roles: str | None = None,
-                 primer_roles: str | None = None, **options: Any) -> None:
+                 primer_roles: str | None = None, force: bool = False,
+                 flags: dict[str, str] | None = None, **options: Any) -> None:
     """The body of ``emotive generate`` (and of its deprecated spellings).
 
     Args:
         model: registry name of the generator.
-        out: main output, ``.bvh`` or ``.npz``.
+        out: main output, ``.bvh``, ``.glb``/``.gltf`` or ``.npz``.
         emotion: anything :func:`~emotive.data.emotion.coerce_emotion` takes (default
             neutral).
         seconds: length of the motion; at most the model's ``capabilities.max_seconds``.
@@ -127,39 +203,33 @@ def run_generate(model: str, out: Path, emotion: str | Path | None, seconds: flo
         rig: BVH file of the rig to retarget the output onto, or ``None`` for the model's.
         rig_roles: role map of ``rig`` (see :func:`emotive.core.roles.resolve_roles`).
         primer_roles: role map of ``primer``, for a primer on another rig than the model's.
+        force: replace outputs that exist (``--force``).
+        flags: the command-line spelling of ``"emotion"`` and ``"checkpoint"``, for
+            messages (default ``--emotion``, ``--checkpoint``).
         **options: model options; ``None`` means not given.
 
     Raises:
         ModelError: an unknown model, or an option the model does not take.
         RequestError: ``seconds`` beyond the model's limit.
-        EmotiveError: bad emotion, path, primer, rig or output, before anything is written.
+        EmotiveError: bad emotion, path, primer, rig or output, before anything is written
+            (all but those that need the model before torch is imported).
     """
+    flags = {"emotion": "--emotion", "checkpoint": "--checkpoint", **(flags or {})}
+    given = {k: v for k, v in options.items() if v is not None}
+    check_request(model, out, emotion, path, npz, preview, primer, checkpoint, rig, rig_roles,
+                  primer_roles, force, given, flags)
+
     import math
 
     import torch
     from rich.console import Console
 
     from emotive.data.emotion import coerce_emotion
-    from emotive.io.outputs import PREVIEW_SUFFIXES, check_distinct, check_output
-    from emotive.models.registry import ModelError, get_model
-    from emotive.render.outputs import OUT_SUFFIXES, write_generated
+    from emotive.errors import EmotionError
+    from emotive.models.registry import get_model
+    from emotive.render.outputs import write_generated
 
-    check_output(out, OUT_SUFFIXES, "--out")
-    if npz is not None:
-        check_output(npz, (".npz",), "--npz")
-    if preview is not None:
-        check_output(preview, PREVIEW_SUFFIXES, "--preview")
-    check_distinct([("--out", out), ("--npz", npz), ("--preview", preview)])
     entry = get_model(model)
-    given = {k: v for k, v in options.items() if v is not None}
-    unknown = [FLAGS.get(k, k) for k in given if k not in entry.option_names]
-    if unknown:
-        takes = ", ".join(FLAGS.get(k, k) for k in entry.option_names) or "no model flags"
-        raise ModelError(f"{' and '.join(unknown)}: model {model!r} does not take "
-                         f"{'them' if len(unknown) > 1 else 'it'}; it takes {takes}")
-    if "generator" not in entry.kinds:
-        raise ModelError(f"--model {model}: it makes no new motion (it is a "
-                         f"{', '.join(entry.kinds)}); use one of the generators")
     ground = primer_motion = None
     if path is not None:
         from emotive.paths import load_path
@@ -167,11 +237,13 @@ def run_generate(model: str, out: Path, emotion: str | Path | None, seconds: flo
         ground = load_path(path)
     if primer is not None:
         primer_motion = read_input(primer, unit)
+        role_joints(primer_motion.skeleton, primer_roles, "--primer-roles")
     rig_motion = None
     if rig is not None:
         from emotive.retarget import resolve_rig
 
         rig_motion = read_input(rig, unit)
+        role_joints(rig_motion.skeleton, rig_roles, "--rig-roles")
         resolve_rig(rig_motion.skeleton, rig_roles, f"--rig {rig}: target", "--rig-roles")
     # The generators step one motion a frame at a time: a second thread only adds overhead.
     torch.set_num_threads(1)
@@ -184,7 +256,11 @@ def run_generate(model: str, out: Path, emotion: str | Path | None, seconds: flo
 
         raise RequestError(f"--seconds {seconds:g}: model {model!r} makes at most {limit:g} s; "
                            f"give a length above 0 and up to {limit:g}")
-    schedule = coerce_emotion(emotion if emotion is not None else "neutral", generator.labels)
+    try:
+        schedule = coerce_emotion(emotion if emotion is not None else "neutral",
+                                  generator.labels)
+    except EmotionError as exc:
+        raise EmotionError(f"{flags['emotion']}: {exc}") from None
     from emotive.models.api import GenerationRequest
 
     request = GenerationRequest(out.stem, schedule=schedule, seconds=seconds, path=ground,
@@ -203,8 +279,9 @@ def run_generate(model: str, out: Path, emotion: str | Path | None, seconds: flo
 
 
 def generate(
-    out: Annotated[Path, out_option("Output file: .bvh (the model's rig, or --rig) or .npz "
-                                    "(joint positions and per-frame emotion).")],
+    out: Annotated[Path, out_option("Output file: .bvh (the model's rig, or --rig), .glb/.gltf "
+                                    "(with a skinned mannequin) or .npz (joint positions and "
+                                    "per-frame emotion).")],
     model: Annotated[
         str, typer.Option("--model", "-m", help="Generator: gait (emotive gait network), "
                           "fcrbm (valence/arousal FCRBM) or lgb (end-effector resampling); "
@@ -282,6 +359,7 @@ def generate(
         typer.Option("--fps", help="lgb: frame rate of the output (default: the data's, 30).",
                      min=1.0, max=240.0, show_default=False),
     ] = None,
+    force: ForceOpt = False,
 ) -> None:
     """Generate motion with an emotion (or a schedule of emotions) from a model."""
     from emotive.errors import EmotionError
@@ -291,5 +369,7 @@ def generate(
     run_generate(model, out, schedule if schedule is not None else emotion, seconds, path=path,
                  npz=npz, preview=preview, primer=primer, seed=seed, checkpoint=checkpoint,
                  unit=unit, rig=rig, rig_roles=rig_roles, primer_roles=primer_roles,
+                 force=force, flags={"emotion": "--emotion-schedule" if schedule is not None
+                                     else "--emotion"},
                  raw=True if raw else None,
                  gibbs=gibbs, root=root, workers=workers, dataset=dataset, fps=fps)

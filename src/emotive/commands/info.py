@@ -14,13 +14,24 @@ from rich.console import Console
 from rich.table import Table
 from rich.tree import Tree
 
-from emotive.commands.options import RolesOpt, UnitOpt, out_option, read_input
+from emotive.commands.options import (
+    ForceOpt,
+    RolesOpt,
+    UnitOpt,
+    input_file,
+    out_option,
+    read_input,
+    role_joints,
+    roles_option,
+)
 from emotive.errors import EmotiveError
 from emotive.io.atomic import atomic_output, output_transaction
 from emotive.io.outputs import check_distinct, check_output
 
 #: Image formats ``--plot`` accepts.
 PLOT_SUFFIXES = (".png", ".pdf", ".svg")
+#: The format ``features --out`` writes.
+TABLE_SUFFIXES = (".csv",)
 
 FileArg = Annotated[
     Path, typer.Argument(help="Motion file: .bvh, .glb, .gltf or .fbx.", dir_okay=True,
@@ -67,11 +78,18 @@ def info(
                      "roles null) to edit and pass back with --roles, and nothing else."),
     ] = False,
 ) -> None:
-    """Describe a BVH clip: rig family, roles, extra joints, height, unit, frames and labels."""
+    """Describe a BVH clip: rig family, roles, extra joints, height, unit, frames and labels.
+
+    With ``--roles`` the map must fit the rig: a map naming a joint the rig lacks is an error
+    naming it, printed before anything else.
+    """
+    input_file(file)
+    roles_option(roles)
     from emotive.data.clips import parse_clip_name
 
     motion = read_input(file, unit)
     sk = motion.skeleton
+    role_joints(sk, roles)
     if roles_template:
         import json
 
@@ -131,7 +149,7 @@ def info(
 
 def features(
     file: FileArg,
-    out: Annotated[Path, out_option("Output CSV, one row per frame.")],
+    out: Annotated[Path, out_option("Output .csv, one row per frame.")],
     plot: Annotated[
         Path | None,
         typer.Option("--plot", help="Also plot the features to this image (.png, .pdf, .svg).",
@@ -139,12 +157,20 @@ def features(
     ] = None,
     roles: RolesOpt = None,
     unit: UnitOpt = "auto",
+    force: ForceOpt = False,
 ) -> None:
     """Write per-frame affective and movement features and foot contacts of a clip to CSV.
 
     Columns: time (s), the 18 affective features, the movement features (per frame, see
     emotive.features.movement) and the contacts (1 = foot on the ground), left then right.
     """
+    check_output(out, TABLE_SUFFIXES, "--out", force)
+    if plot is not None:
+        check_output(plot, PLOT_SUFFIXES, "--plot", force)
+    check_distinct([("--out", out), ("--plot", plot)])
+    input_file(file)
+    roles_option(roles)
+
     import numpy as np
 
     from emotive.core.roles import resolve_roles
@@ -156,17 +182,10 @@ def features(
     from emotive.features.contacts import CONTACT_NAMES, foot_contacts
     from emotive.features.movement import MOVEMENT_FEATURE_NAMES, movement_features
 
-    check_output(out, None, "--out")
-    if plot is not None:
-        if plot.suffix.lower() not in PLOT_SUFFIXES:
-            raise EmotiveError(
-                f"--plot {plot}: unknown image type {plot.suffix!r}; use one of {PLOT_SUFFIXES}"
-            )
-        check_output(plot, PLOT_SUFFIXES, "--plot")
-    check_distinct([("--out", out), ("--plot", plot)])
     motion = read_input(file, unit)
     if motion.num_frames == 0:
         raise EmotiveError(f"{file} has no frames: nothing to compute")
+    role_joints(motion.skeleton, roles)
     joint_roles = resolve_roles(motion.skeleton, roles)
     positions = motion.positions_with_end_sites()
     affective = affective_features_np(positions, joint_roles)

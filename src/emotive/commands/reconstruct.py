@@ -16,12 +16,17 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from emotive.commands.options import (
+    MOTION_OUT,
     ON_INPUT_RIG,
+    ForceOpt,
     PreviewOpt,
     RolesOpt,
     UnitOpt,
+    input_file,
     out_option,
     read_input,
+    role_joints,
+    roles_option,
 )
 
 if TYPE_CHECKING:
@@ -76,21 +81,28 @@ def reconstruct(
     role_map: RolesOpt = None,
     unit: UnitOpt = "auto",
     preview: PreviewOpt = None,
+    force: ForceOpt = False,
 ) -> None:
     """Rebuild a clip from its own pelvis, end-effector and elbow trajectories by IK."""
+    from emotive.io.outputs import PREVIEW_SUFFIXES, check_distinct, check_output
+
+    check_output(out, MOTION_OUT, "--out", force)
+    if preview is not None:
+        check_output(preview, PREVIEW_SUFFIXES, "--preview", force)
+    check_distinct([("--out", out), ("--preview", preview)])
+    input_file(input)
+    roles_option(role_map)
+
     from rich.console import Console
 
     from emotive.errors import BVHError, RigError
     from emotive.ik import IKError
     from emotive.ik import reconstruct as ik_reconstruct
     from emotive.io.atomic import output_transaction
-    from emotive.io.motion_files import MOTION_SUFFIXES, write_motion
-    from emotive.io.outputs import PREVIEW_SUFFIXES, check_output
+    from emotive.io.motion_files import write_motion
 
-    check_output(out, MOTION_SUFFIXES, "--out")
-    if preview is not None:
-        check_output(preview, PREVIEW_SUFFIXES, "--preview")
     motion = read_input(input, unit)
+    role_joints(motion.skeleton, role_map)
     if motion.num_frames == 0:
         raise BVHError(
             input,

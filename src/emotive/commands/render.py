@@ -10,7 +10,14 @@ from typing import Annotated
 
 import typer
 
-from emotive.commands.options import UnitOpt, out_option, positive, read_input
+from emotive.commands.options import (
+    ForceOpt,
+    UnitOpt,
+    input_file,
+    out_option,
+    positive,
+    read_input,
+)
 
 
 def preview(
@@ -33,15 +40,21 @@ def preview(
     width: Annotated[int, typer.Option(help="Width in pixels.", min=64, max=3840)] = 640,
     height: Annotated[int, typer.Option(help="Height in pixels.", min=64, max=2160)] = 480,
     unit: UnitOpt = "auto",
+    force: ForceOpt = False,
 ) -> None:
     """Render a clip as a stick figure following the character, with its trail on the ground."""
+    from emotive.commands.generate import path_option
+    from emotive.io.outputs import PREVIEW_SUFFIXES, check_output
+
+    check_output(out, PREVIEW_SUFFIXES, "--out", force)
+    input_file(file)
+    path_option(path)
+
     from rich.console import Console
 
-    from emotive.io.outputs import PREVIEW_SUFFIXES, check_output
     from emotive.paths import load_path
     from emotive.render.preview import render_preview
 
-    check_output(out, PREVIEW_SUFFIXES, "--out")
     ground = load_path(path).points if path is not None else None
     motion = read_input(file, unit)
     captions = [caption] * motion.num_frames if caption else None

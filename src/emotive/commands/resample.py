@@ -11,7 +11,14 @@ from typing import Annotated
 
 import typer
 
-from emotive.commands.options import PreviewOpt, SecondsOpt, SeedOpt, deprecated, out_option
+from emotive.commands.options import (
+    ForceOpt,
+    PreviewOpt,
+    SecondsOpt,
+    SeedOpt,
+    deprecated,
+    out_option,
+)
 
 
 def resample(
@@ -38,10 +45,11 @@ def resample(
         str | None, typer.Option(help="Data set whose clips are resampled.",
                                  show_default=False)
     ] = None,
+    force: ForceOpt = False,
 ) -> None:
     """Deprecated: `emotive generate --model lgb`."""
     from emotive.commands.generate import run_generate
 
     deprecated("resample", "generate --model lgb")
-    run_generate("lgb", out, emotion, seconds, preview=preview, seed=seed, fps=fps,
+    run_generate("lgb", out, emotion, seconds, preview=preview, seed=seed, force=force, fps=fps,
                  workers=workers, dataset=dataset)

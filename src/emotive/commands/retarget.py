@@ -17,12 +17,17 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from emotive.commands.options import (
+    MOTION_OUT,
+    ForceOpt,
     RolesOpt,
     UnitOpt,
+    input_file,
     length_unit,
     out_option,
     positive,
     read_input,
+    role_joints,
+    roles_option,
 )
 
 if TYPE_CHECKING:
@@ -79,16 +84,25 @@ def retarget(
         typer.Option("--to-unit", callback=length_unit, help="Length unit of the --to rig "
                      "file, as --unit (the output is written in it)."),
     ] = "auto",
+    force: ForceOpt = False,
 ) -> None:
     """Play a clip on another humanoid rig: rest poses aligned per bone, feet kept planted."""
-    from emotive.errors import BVHError, RigError
-    from emotive.io.motion_files import MOTION_SUFFIXES, write_motion
     from emotive.io.outputs import check_output
+
+    check_output(out, MOTION_OUT, "--out", force)
+    input_file(input)
+    input_file(to, "--to")
+    roles_option(role_map)
+    roles_option(to_roles, "--to-roles")
+
+    from emotive.errors import BVHError, RigError
+    from emotive.io.motion_files import write_motion
     from emotive.retarget import retarget as retarget_motion
 
-    check_output(out, MOTION_SUFFIXES, "--out")
     motion = read_input(input, unit)
     rig = read_input(to, to_unit)
+    role_joints(motion.skeleton, role_map)
+    role_joints(rig.skeleton, to_roles, "--to-roles")
     if motion.num_frames == 0:
         raise BVHError(input, None, "holds no frames: there is nothing to retarget; pass a "
                        "clip with motion data")

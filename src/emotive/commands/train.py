@@ -22,15 +22,20 @@ from emotive.commands.options import (
     SEED_MAX,
     ConfigOpt,
     EpochsOpt,
+    ForceOpt,
     NprocOpt,
     ResumeOpt,
     SeedOpt,
     TrainOutOpt,
+    check_training,
     run_training,
 )
 
 if TYPE_CHECKING:
     from emotive.eval.classifier import ClassifierConfig
+
+#: The file ``train classifier`` writes into its folder.
+CLASSIFIER_FILE = "emotion-classifier.pt"
 
 app = typer.Typer(help="Train models on the real data sets.", no_args_is_help=True,
                   add_completion=False)
@@ -61,8 +66,10 @@ def train_gait_command(
     seed: SeedOpt = 0,
     epochs: EpochsOpt = None,
     nproc: NprocOpt = 1,
+    force: ForceOpt = False,
 ) -> None:
     """Train the emotive gait network (Ctrl-C keeps the last epoch; --resume continues)."""
+    check_training(config, out, resume, force)
     from emotive.models.gait.training import load_gait_settings, train_gait
 
     result = run_training(load_gait_settings, train_gait, config, out, resume, seed, epochs,
@@ -77,8 +84,10 @@ def train_quaternet_command(
     resume: ResumeOpt = False,
     seed: SeedOpt = 0,
     epochs: EpochsOpt = None,
+    force: ForceOpt = False,
 ) -> None:
     """Train the QuaterNet baseline on the gait data (Ctrl-C keeps the last epoch; --resume)."""
+    check_training(config, out, resume, force)
     from emotive.models.gait.quaternet.training import load_quaternet_settings, train_quaternet
 
     result = run_training(load_quaternet_settings, train_quaternet, config, out, resume, seed,
@@ -93,12 +102,14 @@ def train_fcrbm_command(
     resume: ResumeOpt = False,
     seed: SeedOpt = 0,
     epochs: EpochsOpt = None,
+    force: ForceOpt = False,
 ) -> None:
     """Train the FCRBM by contrastive divergence.
 
     Train the FCRBM by contrastive divergence on walks of every style with a valence/arousal
     entry (Ctrl-C keeps the last finished epoch; --resume continues exactly).
     """
+    check_training(config, out, resume, force)
     from emotive.models.fcrbm.training import load_fcrbm_settings, train_fcrbm
 
     result = run_training(load_fcrbm_settings, train_fcrbm, config, out, resume, seed, epochs)
@@ -129,22 +140,22 @@ def train_classifier_command(
                                 "(leave one studio out) for the card.")
     ] = True,
     nproc: NprocOpt = 1,
+    force: ForceOpt = False,
 ) -> None:
     """Train the perceived-emotion classifier on real data, measure it, write it and its card."""
+    recipe = check_training(config, out, False, force, CLASSIFIER_FILE)
+
     from dataclasses import replace
 
-    from emotive.configs import resolve_config
     from emotive.eval.classifier_training import read_config
     from emotive.io.atomic import output_error
-    from emotive.io.outputs import check_output_folder
     from emotive.models.distributed import run_parallel
 
-    check_output_folder(out, "--out")
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise output_error(out, exc) from exc
-    cfg = read_config(resolve_config(config))
+    cfg = read_config(recipe)
     cfg = replace(cfg, seed=cfg.seed if seed is None else seed,
                   epochs=cfg.epochs if epochs is None else epochs)
     run_parallel(train_classifier_job, cfg, out, studios, nproc=nproc)
@@ -194,7 +205,7 @@ def train_classifier_job(cfg: ClassifierConfig, out: Path, studios: bool) -> Non
     console.print("measuring the unsure rates of the held-out clips ...")
     model.metrics["unsure"] = unsure_rates(model, tracks)
     model.metrics["train_seconds"] = time.perf_counter() - start
-    path = model.save(out / "emotion-classifier.pt")
+    path = model.save(out / CLASSIFIER_FILE)
     names = {s: sorted({i.name for i in v}) for s, v in data.items()}
     weights = (path.name, hashlib.sha256(path.read_bytes()).hexdigest())
     with atomic_output(out / "MODEL_CARD.md") as tmp:

@@ -17,13 +17,18 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from emotive.commands.options import (
+    MOTION_OUT,
     ON_INPUT_RIG,
     PreviewOpt,
     RolesOpt,
     UnitOpt,
+    emotion_option,
     flag,
+    input_file,
     out_option,
     read_input,
+    role_joints,
+    roles_option,
 )
 
 if TYPE_CHECKING:
@@ -97,7 +102,8 @@ def transfer(
                      "and exit when no input is given.")
     ] = False,
     force: Annotated[
-        bool, flag("force", "Rebuild the index even if it exists.")
+        bool, flag("force", "Replace outputs that exist already: --out and --preview, or, "
+                   "with --build-index and no input, the index (rebuilt).")
     ] = False,
 ) -> None:
     """Translate a clip into another style, frame by frame.
@@ -105,19 +111,11 @@ def transfer(
     Translate a clip into another style, frame by frame (online local mixtures of
     autoregressive models).
     """
-    from rich.console import Console
+    from emotive.errors import EmotionError, OutputError
+    from emotive.io.outputs import PREVIEW_SUFFIXES, check_distinct, check_output
 
-    from emotive.data.emotion import EmotionSchedule
-    from emotive.errors import BVHError, OutputError
-    from emotive.io.atomic import output_transaction
-    from emotive.io.motion_files import MOTION_SUFFIXES, write_motion
-    from emotive.io.outputs import PREVIEW_SUFFIXES, check_output
-    from emotive.models.mar.config import TransferError
-    from emotive.models.mar.transfer import parse_style, transfer_motion
-
-    console = Console(stderr=True)
     if input is None:
-        if not (build_index or force):
+        if not build_index:
             raise OutputError("give an input clip (emotive transfer INPUT.bvh --style S --out "
                               "OUT.bvh) or --build-index")
         _, path = open_index(index, True, force)
@@ -125,15 +123,32 @@ def transfer(
         return
     if out is None:
         raise OutputError(f"{input}: give --out OUT.bvh for the translated clip")
-    check_output(out, MOTION_SUFFIXES, "--out")
+    check_output(out, MOTION_OUT, "--out", force)
     if preview is not None:
-        check_output(preview, PREVIEW_SUFFIXES, "--preview")
+        check_output(preview, PREVIEW_SUFFIXES, "--preview", force)
+    check_distinct([("--out", out), ("--preview", preview)])
+    input_file(input)
+    roles_option(role_map)
     if (style is None) == (style_schedule is None):
-        raise TransferError(f"{input}: give exactly one of --style and --style-schedule")
+        raise EmotionError(f"{input}: give exactly one of --style and --style-schedule")
+    emotion_option(style if style is not None else style_schedule,
+                   "--style" if style is not None else "--style-schedule")
+
+    from rich.console import Console
+
+    from emotive.data.emotion import EmotionSchedule
+    from emotive.errors import BVHError
+    from emotive.io.atomic import output_transaction
+    from emotive.io.motion_files import write_motion
+    from emotive.models.mar.config import TransferError
+    from emotive.models.mar.transfer import parse_style, transfer_motion
+
+    console = Console(stderr=True)
     motion = read_input(input, unit)
     if motion.num_frames == 0:
         raise BVHError(input, None, "holds no frames: there is nothing to translate")
-    db, _ = open_index(index, build_index, force)
+    role_joints(motion.skeleton, role_map)
+    db, _ = open_index(index, build_index, False)
     if style_schedule is not None:
         spec = EmotionSchedule.from_json(style_schedule, db.styles)
     else:

@@ -8,12 +8,12 @@ An emotion is a normalized, non-negative weight vector ``(C,)`` over an ordered 
 their valence/arousal points and the conversions between the two). Models fix their labels in
 their config; every function takes ``labels`` for that reason.
 
-Text form (command line, JSON): ``"happy=0.7,neutral=0.3"`` or a single name ``"sad"``; weights
-are normalized to sum to one. ``"valence=0.5,arousal=-0.2"`` is a point of the -1..1
-circumplex (up to :data:`~emotive.data.circumplex.VA_LIMIT` exaggerates), blended over the
+Text form (command line, JSON): ``"happy=0.7,neutral=0.3"`` or a single name ``"sad"``; each
+weight is from 0 to 1 and the blend is normalized to sum to one. ``"valence=0.5,arousal=-0.2"``
+is a point of the -1..1 circumplex (:data:`~emotive.data.circumplex.VA_LIMIT`), blended over the
 labels by the Gaussian kernel of :func:`~emotive.data.circumplex.weights_from_valence_arousal`.
-Unknown names, negative, NaN or infinite weights and all-zero vectors raise
-:class:`~emotive.errors.EmotionError`.
+Unknown names, weights outside 0..1, NaN or infinite weights, all-zero vectors and points
+outside -1..1 raise :class:`~emotive.errors.EmotionError`: a value is refused, never clamped.
 
 Schedules
 ---------
@@ -221,23 +221,19 @@ class EmotionSchedule:
         Keyframes as for :meth:`from_keyframes` (``points_over`` likewise).
 
         Raises:
-            EmotionError: the file is missing or not valid JSON, or a keyframe is bad.
+            EmotionError: the file does not exist, is not valid JSON (line and column named),
+                or a keyframe is bad; text that is neither a file nor JSON says so.
         """
         text = str(source)
         where = "emotion schedule"
-        if not text.lstrip().startswith("["):
-            path = Path(text)
-            where = str(path)
-            try:
-                text = path.read_text()
-            except OSError as exc:
-                raise EmotionError(
-                    f"emotion schedule {path} cannot be read ({exc.strerror}): check the path"
-                ) from None
+        if isinstance(source, os.PathLike) or not text.lstrip().startswith("["):
+            text, where = _schedule_text(text)
         try:
             data = json.loads(text)
         except json.JSONDecodeError as exc:
-            raise EmotionError(f"{where} is not valid JSON ({exc})") from None
+            raise EmotionError(f"{where} is not valid JSON (line {exc.lineno}, column "
+                               f"{exc.colno}: {exc.msg}); give a list of keyframes "
+                               '[{"t": 0, "emotion": "sad"}, ...]') from None
         try:
             return cls.from_keyframes(data, labels, points_over)
         except EmotionError as exc:
@@ -357,6 +353,31 @@ class EmotionSchedule:
             {"t": float(t), "emotion": Emotion(w, self.labels).to_dict()}
             for t, w in zip(self.times, self.weights, strict=True)
         ]
+
+
+def _schedule_text(text: str) -> tuple[str, str]:
+    """The JSON text of a schedule given as a path, and how messages name it.
+
+    A path that exists is read. One that does not is an error saying so when it is named like
+    a file (``.json`` or a folder in it); other text is taken as JSON, so that ``not json``
+    is "not valid JSON", not "no such file".
+
+    Raises:
+        EmotionError: a file that does not exist or cannot be read, or a folder.
+    """
+    path = Path(text)
+    if path.is_dir():
+        raise EmotionError(f"emotion schedule {path} is a folder; give a .json file of keyframes")
+    if path.exists():
+        try:
+            return path.read_text(), f"emotion schedule {path}"
+        except (OSError, UnicodeDecodeError) as exc:
+            reason = exc.strerror if isinstance(exc, OSError) else "not UTF-8 text"
+            raise EmotionError(f"emotion schedule {path} cannot be read ({reason}): check the "
+                               "file") from None
+    if path.suffix.lower() == ".json" or os.sep in text:
+        raise EmotionError(f"emotion schedule {path} does not exist: check the path")
+    return text, f"emotion schedule {text!r}"
 
 
 #: What :func:`coerce_emotion` accepts.

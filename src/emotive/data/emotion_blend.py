@@ -57,8 +57,11 @@ class Emotion:
     ) -> Emotion:
         """An emotion from ``{"happy": 0.7, "neutral": 0.3}``; missing labels weigh zero.
 
+        Each weight is from 0 to 1; the blend is scaled to sum to one.
+
         Raises:
-            EmotionError: unknown names, repeats, negative, non-finite or all-zero weights.
+            EmotionError: unknown names, repeats, weights outside 0..1, non-finite or all-zero
+                weights.
         """
         where = json.dumps(dict(mapping)) if jsonable(mapping) else repr(mapping)
         return cls._from_pairs(mapping, labels, where)
@@ -87,9 +90,11 @@ class Emotion:
                 raise EmotionError(
                     f"weight of {name!r} in {where} is {weight}: use a finite number"
                 )
-            if weight < 0:
+            if not 0 <= weight <= 1:
                 raise EmotionError(
-                    f"weight of {name!r} in {where} is {weight}: weights must be >= 0"
+                    f"weight of {name!r} in {where} is {weight:g}, outside 0..1: give each "
+                    "label a weight from 0 to 1 (a blend is then scaled to sum to 1), e.g. "
+                    "'happy=0.7,neutral=0.3'"
                 )
             w[labels.index(name)] = weight
         if not w.any():
@@ -104,6 +109,7 @@ class Emotion:
         """An emotion from ``"happy=0.7,neutral=0.3"`` or a single name ``"sad"``.
 
         ``:`` may stand for ``=``; names are case-insensitive and ``normal`` means ``neutral``.
+        Each weight is from 0 to 1 (``"happy=2"`` is refused, not read as ``happy=1``).
         A name without a weight stands for weight 1 only when it is alone: in a blend every
         label needs its weight (``"happy=0.7,sad"`` is an error, not ``sad=1``).
 

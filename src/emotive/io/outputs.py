@@ -1,4 +1,14 @@
-"""Checks of output file names, run by every command before any work is done."""
+"""Checks of output names, run by every command before any work is done.
+
+One rule for every command's outputs (``docs/cli.md``):
+
+* a file output is named with a suffix of a format the command writes; any other suffix is
+  refused with the formats it does write (the format follows the name, never the reverse);
+* a folder output (a report, a web page, a training run) is not named like a file
+  (``--out agents.html`` is refused rather than made a folder of that name);
+* an output that exists is replaced only with ``--force`` (then all or none, atomically:
+  :mod:`emotive.io.atomic`); without it the command stops before any work, naming the file.
+"""
 
 from __future__ import annotations
 
@@ -11,6 +21,30 @@ from emotive.io.atomic import check_writable
 
 #: Suffixes of the stick-figure previews.
 PREVIEW_SUFFIXES = (".mp4", ".gif")
+
+#: Suffixes of the file formats the toolkit reads or writes, and of the common formats a user
+#: may mistake a folder output for: a folder output of one of these names is refused.
+FILE_SUFFIXES = frozenset({
+    ".bvh", ".glb", ".gltf", ".fbx", ".npz", ".npy", ".csv", ".json", ".md", ".txt", ".toml",
+    ".png", ".pdf", ".svg", ".jpg", ".jpeg", ".gif", ".mp4", ".html", ".htm", ".js", ".onnx",
+    ".pt", ".pth", ".zip", ".tar", ".gz", ".tgz", ".db", ".sqlite",
+})
+
+
+def existing_output(path: Path, option: str, force: bool) -> None:
+    """The one rule for an output that exists already: replaced only with ``--force``.
+
+    Args:
+        path: the output file or folder.
+        option: the option that named it, for the message (``"--out"``).
+        force: the command's ``--force``.
+
+    Raises:
+        OutputError: ``path`` exists and ``force`` is off, naming it and the fix.
+    """
+    if not force and os.path.lexists(path):
+        raise OutputError(f"{option} {path} exists already; add --force to replace it, or "
+                          "choose another name")
 
 
 def _nearest_existing(path: Path) -> Path:
@@ -36,7 +70,8 @@ def missing_folder(path: Path) -> str | None:
     return f"folder {path.parent} does not exist; create it first"
 
 
-def check_output(path: Path, suffixes: tuple[str, ...] | None, option: str) -> None:
+def check_output(path: Path, suffixes: tuple[str, ...] | None, option: str,
+                 force: bool | None = None) -> None:
     """Fail early on an output of the wrong kind, a folder's name, or an unwritable folder.
 
     Args:
@@ -44,6 +79,8 @@ def check_output(path: Path, suffixes: tuple[str, ...] | None, option: str) -> N
         suffixes: accepted suffixes, lower case with the dot (``(".bvh", ".npz")``); ``None``
             accepts any.
         option: the option that named it, for the message (``"--out"``).
+        force: the command's ``--force`` (:func:`existing_output`); ``None`` where the
+            command has applied that rule already (a check again just before writing).
 
     Raises:
         OutputError: naming the option, the file and the fix.
@@ -54,7 +91,11 @@ def check_output(path: Path, suffixes: tuple[str, ...] | None, option: str) -> N
         raise OutputError(f"{option} {path}: that is a folder; name a file in it, e.g. "
                           f"{example}")
     if suffixes is not None and path.suffix.lower() not in suffixes:
-        raise OutputError(f"{option} {path}: use a file ending in {' or '.join(suffixes)}")
+        given = f"{path.suffix!r} is not a format it writes" if path.suffix else "no suffix"
+        raise OutputError(f"{option} {path}: {given}; use a file ending in "
+                          f"{' or '.join(suffixes)}")
+    if force is not None:
+        existing_output(path, option, force)
     problem = missing_folder(path)
     if problem is not None:
         raise OutputError(f"{option} {path}: {problem}")
@@ -84,10 +125,27 @@ def check_distinct(outputs: Sequence[tuple[str, Path | None]]) -> None:
         seen[key] = option
 
 
+def folder_name(folder: Path, option: str) -> None:
+    """Fail on a new folder output named like a file (``--out agents.html``), before any work.
+
+    A name that exists is left to the command's own checks (a file there is "a file, not a
+    folder"; a folder of that name is taken as it is).
+
+    Raises:
+        OutputError: naming the option, the name and the fix.
+    """
+    folder = Path(folder)
+    if folder.suffix.lower() in FILE_SUFFIXES and not folder.exists():
+        raise OutputError(f"{option} {folder}: this command writes a folder, and "
+                          f"{folder.suffix!r} names a file; name a folder, e.g. "
+                          f"{folder.with_suffix('')}")
+
+
 def check_output_folder(folder: Path, option: str) -> None:
     """Fail early on an output folder that is a file or that cannot be made or written.
 
-    A missing folder is fine (it is made later) when its nearest existing parent is writable.
+    A missing folder is fine (it is made later) when its nearest existing parent is writable;
+    a missing folder named like a file (:func:`folder_name`) is refused.
 
     Args:
         folder: the output folder.
@@ -101,6 +159,7 @@ def check_output_folder(folder: Path, option: str) -> None:
     if not existing.is_dir():
         raise OutputError(f"{option} {folder}: {existing} is a file, not a folder; choose "
                           "another folder name")
+    folder_name(folder, option)
     try:
         check_writable(existing)
     except OutputError as exc:
