@@ -16,6 +16,7 @@ from bvh_mutants import N_FRAMES, base_motion, base_text, deep_chain, mutants
 from cli_helpers import run_main
 from emotive.errors import BVHError
 from emotive.io import bvh_limits as limits
+from emotive.io import input_limits
 from emotive.io.bvh import read_bvh, write_bvh
 
 #: Per-mutant budgets: far above what a mutant takes (under 0.3 s, under 12 MB traced). The
@@ -335,9 +336,9 @@ class TestBudgets:
         motion = base_motion(frames=12)
         path = write_bvh(motion, tmp_path / "clip.bvh")
         width = len(path.read_text().splitlines()[-1].split())
-        monkeypatch.setattr(limits, "MAX_VALUES", 12 * width)
+        monkeypatch.setattr(input_limits, "MAX_VALUES", 12 * width)
         assert read_bvh(path).num_frames == 12
-        monkeypatch.setattr(limits, "MAX_VALUES", 12 * width - 1)
+        monkeypatch.setattr(input_limits, "MAX_VALUES", 12 * width - 1)
         with pytest.raises(BVHError, match=f"= {12 * width} values: at most"):
             read_bvh(path)
 
@@ -360,7 +361,7 @@ class TestBudgets:
         assert "S" * limits.MAX_TOKEN_CHARS in read_bvh(path).skeleton.names
 
     def test_end_sites_are_bounded_like_joints(self, tmp_path, monkeypatch):
-        monkeypatch.setattr(limits, "MAX_JOINTS", 3)
+        monkeypatch.setattr(input_limits, "MAX_JOINTS", 3)
         end = "End Site\n{\nOFFSET 0 1 0\n}\n"
         path = tmp_path / "ends.bvh"
         path.write_text(ONE_JOINT.replace("  End Site", end * 3 + "  End Site"))

@@ -3,9 +3,13 @@
 from __future__ import annotations
 
 import base64
+import contextlib
 import json
+import os
 import shutil
 import subprocess
+import threading
+import tracemalloc
 from pathlib import Path
 
 import numpy as np
@@ -218,7 +222,7 @@ def _missing_node(doc, blob):
     (_integers, ["not normalized"]),
     (_no_skin_no_animation, ["no skin and no animation", "armature"]),
     (_truncated_view, ["past the end"]),
-    (_missing_node, ["missing node"]),
+    (_missing_node, ["channels[0].target.node", "nodes[999]", "not there"]),
     (_compressed, ["EXT_meshopt_compression", "without compression"]),
 ])
 def test_a_file_it_cannot_read_gives_a_typed_one_line_error(tmp_path, change, words):
@@ -246,7 +250,8 @@ def test_missing_files_and_buffers_name_the_fix(tmp_path):
         read_gltf(tmp_path / "absent.glb")
     path = _external_bin(standing_clip(frames=4), tmp_path)
     (tmp_path / "walk data.bin").unlink()
-    with pytest.raises(MotionFileError, match=r"walk data\.bin.*keep the \.bin beside"):
+    with pytest.raises(MotionFileError, match=r"buffers\[0\]\.uri: .*walk data\.bin.*no such "
+                       r"file.*keep the \.bin beside"):
         read_gltf(path)
     doc, blob = gltf_document(standing_clip(frames=4))
     doc.buffers[0].uri = "data:application/octet-stream;base64," + base64.b64encode(
@@ -293,3 +298,223 @@ def test_malformed_fields_give_a_typed_error(tmp_path, change):
     path.write_text(json.dumps(doc))
     with pytest.raises(MotionFileError, match=r"w\.gltf: .*(corrupt|not a readable glTF)"):
         read_gltf(path)
+
+
+# --- The input contract (emotive.io.input_limits): one test per refusal ---------------------
+
+
+def walk_json(frames: int = 4) -> tuple[dict, bytes]:
+    """The JSON object and buffer of a small walk, as emotive writes it (no mesh)."""
+    doc, blob = gltf_document(standing_clip(frames=frames), mesh=False)
+    return json.loads(doc.gltf_to_json(separators=(",", ":"))), blob
+
+
+def refused(path: Path, *words: str) -> str:
+    """The one-line message of reading ``path``, which must hold every one of ``words``."""
+    with pytest.raises(MotionFileError) as exc:
+        read_gltf(path)
+    message = str(exc.value)
+    assert message.startswith(f"{path}: ") and "\n" not in message, message
+    assert all(w in message for w in words), message
+    return message
+
+
+@pytest.fixture
+def sandbox(tmp_path) -> tuple[Path, Path, dict, bytes]:
+    """``(case folder, folder beside it, JSON, buffer)``; beside the case folder lies
+    ``outside.bin``, a valid buffer for the JSON: a reader that left its folder would read it."""
+    root, blob = walk_json()
+    outside = tmp_path / "outside"
+    outside.mkdir()
+    (outside / "outside.bin").write_bytes(blob)
+    case = tmp_path / "case"
+    case.mkdir()
+    return case, outside, root, blob
+
+
+def _gltf(case: Path, root: dict, uri: str) -> Path:
+    root = json.loads(json.dumps(root))
+    root["buffers"][0]["uri"] = uri
+    path = case / "walk.gltf"
+    path.write_text(json.dumps(root))
+    return path
+
+
+@pytest.mark.parametrize(("uri", "words"), [
+    ("../outside/outside.bin", "leads outside the document's folder"),
+    ("sub/../../outside/outside.bin", "leads outside the document's folder"),
+    ("%2E%2E/outside/outside.bin", "leads outside the document's folder"),
+    ("..%2Foutside%2Foutside.bin", "leads outside the document's folder"),
+    ("{outside}/outside.bin", "is an absolute path"),
+    ("%2F{outside_rel}/outside.bin", "is an absolute path"),
+    ("/etc/passwd", "is an absolute path"),
+    ("file://{outside}/outside.bin", "is a URL"),
+    ("http://127.0.0.1:9/outside.bin", "nothing is fetched"),
+])
+def test_a_buffer_uri_leading_out_of_the_folder_is_refused(sandbox, uri, words):
+    case, outside, root, _ = sandbox
+    uri = uri.format(outside=outside, outside_rel=str(outside).lstrip("/"))
+    refused(_gltf(case, root, uri), "buffers[0].uri: ", words, "keep the file it names")
+
+
+@pytest.mark.parametrize(("name", "target", "uri"), [
+    ("link.bin", "../outside/outside.bin", "link.bin"),
+    ("zero.bin", "/dev/zero", "zero.bin"),
+    ("environ.bin", "/proc/self/environ", "environ.bin"),
+    ("inner", "../outside", "inner/outside.bin"),
+])
+def test_a_symbolic_link_leading_out_of_the_folder_is_refused(sandbox, name, target, uri):
+    case, _, root, _ = sandbox
+    os.symlink(target, case / name)
+    refused(_gltf(case, root, uri), "buffers[0].uri: ", "leads outside the document's folder")
+
+
+def test_a_bin_in_a_folder_below_is_read_and_a_data_uri_too(sandbox, tmp_path):
+    case, _, root, blob = sandbox
+    (case / "data").mkdir()
+    (case / "data" / "walk data.bin").write_bytes(blob)
+    assert read_gltf(_gltf(case, root, "data/walk%20data.bin")).num_frames == 4
+    uri = "data:application/gltf-buffer;base64," + base64.b64encode(blob).decode()
+    assert read_gltf(_gltf(case, root, uri)).num_frames == 4
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="named pipes need POSIX")
+@pytest.mark.parametrize("which", ["buffer", "document"])
+def test_a_named_pipe_is_refused_at_once(sandbox, which):
+    case, _, root, _ = sandbox
+    os.mkfifo(case / "pipe.bin")
+    path = _gltf(case, root, "pipe.bin")
+    if which == "document":
+        path.unlink()
+        os.mkfifo(path)
+    result: list[BaseException | None] = []
+
+    def read() -> None:
+        try:
+            read_gltf(path)
+        except BaseException as exc:
+            result.append(exc)
+        else:
+            result.append(None)
+
+    worker = threading.Thread(target=read, daemon=True)
+    worker.start()
+    worker.join(30.0)  # a hang detector, far above the milliseconds a refusal takes
+    if worker.is_alive():
+        for fifo in (case / "pipe.bin", path):  # unblock the reader, then fail
+            with contextlib.suppress(OSError):
+                os.close(os.open(fifo, os.O_WRONLY | os.O_NONBLOCK))
+        pytest.fail("read_gltf blocked on a named pipe")
+    assert isinstance(result[0], MotionFileError), result
+    assert "not a regular file" in str(result[0])
+    if which == "buffer":
+        assert "buffers[0].uri" in str(result[0])
+
+
+@pytest.mark.parametrize(("path", "words"), [("/dev/zero", "not a regular file"),
+                                             ("/proc/self/environ", "is a system file")])
+def test_a_device_or_kernel_file_is_refused_before_it_is_read(path, words):
+    if not Path(path).exists():
+        pytest.skip(f"no {path}")
+    refused(Path(path), words)
+
+
+def test_a_folder_in_place_of_a_buffer_is_refused(sandbox):
+    case, _, root, _ = sandbox
+    (case / "folder.bin").mkdir()
+    refused(_gltf(case, root, "folder.bin"), "buffers[0].uri", "is a folder")
+
+
+def glb_file(tmp_path: Path, root: dict, blob: bytes, name: str = "walk.glb") -> Path:
+    from gltf_mutants import glb_bytes
+
+    path = tmp_path / name
+    path.write_bytes(glb_bytes(root, blob))
+    return path
+
+
+def test_a_huge_count_is_refused_before_any_array_is_made(tmp_path):
+    root, blob = walk_json()
+    translation = root["animations"][0]["samplers"][-1]["output"]
+    del root["accessors"][translation]["bufferView"]  # read as zeros: nothing bounds count
+    root["accessors"][translation]["count"] = 10**9
+    path = glb_file(tmp_path, root, blob)
+    tracemalloc.start()
+    try:
+        refused(path, f"accessors[{translation}].count", "at most 20,000,000")
+        assert tracemalloc.get_traced_memory()[1] < 20 * 2**20
+    finally:
+        tracemalloc.stop()
+
+
+@pytest.mark.parametrize(("array", "key", "value", "element"), [
+    ("accessors", "byteOffset", 2**40, "accessors[0].byteOffset"),
+    ("accessors", "byteOffset", 1000, "accessors[0]: reads past the end of bufferViews[0]"),
+    ("accessors", "count", -1, "accessors[0].count"),
+    ("accessors", "count", "5", "accessors[0].count"),
+    ("bufferViews", "byteOffset", 10**6, "bufferViews[0]: reads past the end of buffers[0]"),
+    ("bufferViews", "byteLength", 2**62, "bufferViews[0].byteLength"),
+    ("bufferViews", "byteStride", 2, "bufferViews[0].byteStride"),
+    ("bufferViews", "byteStride", 256, "bufferViews[0].byteStride"),
+    ("buffers", "byteLength", 10**8, "buffers[0].byteLength"),
+])
+def test_every_size_is_checked_against_the_data_there(tmp_path, array, key, value, element):
+    root, blob = walk_json()
+    root[array][0][key] = value
+    refused(glb_file(tmp_path, root, blob), element)
+
+
+@pytest.mark.parametrize(("key", "value", "words"), [
+    ("matrix", [float("nan")] * 16, "nodes[1].matrix: holds a number that is not finite"),
+    ("matrix", [1, 0, 0, 1, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1],
+     "nodes[1].matrix: is not an affine transform"),
+    ("translation", [float("inf"), 0, 0], "nodes[1].translation: holds a number that is not"),
+    ("translation", [3e38, 0, 0], "nodes[1]: joint offsets reach 3e+38 m: at most 1000 m"),
+    ("rotation", [0, 0, 0, 0], "nodes[1].rotation: is a zero quaternion"),
+])
+def test_node_transforms_must_be_finite_and_plausible(tmp_path, key, value, words):
+    root, blob = walk_json()
+    node = root["nodes"][1]  # the spine: the hips' rest offset carries the walk's start
+    for other in ("translation", "rotation", "scale", "matrix"):
+        node.pop(other, None)
+    node[key] = value
+    # json.dumps writes NaN and Infinity as the bare words other writers use too.
+    path = tmp_path / "walk.gltf"
+    root["buffers"][0]["uri"] = ("data:application/octet-stream;base64,"
+                                 + base64.b64encode(blob).decode())
+    path.write_text(json.dumps(root))
+    refused(path, words)
+
+
+@pytest.mark.parametrize(("value", "words"), [
+    (3e38, "nodes[0]: joint translations reach 3e+38 m: at most 1000 m"),
+    (float("nan"), "holds values that are not finite"),
+])
+def test_an_animation_sample_must_be_finite_and_plausible(tmp_path, value, words):
+    root, blob = walk_json()
+    output = root["accessors"][root["animations"][0]["samplers"][-1]["output"]]
+    assert output["type"] == "VEC3"  # the hips' translation track
+    at = root["bufferViews"][output["bufferView"]]["byteOffset"] + 12 * 2
+    data = bytearray(blob)
+    data[at:at + 4] = np.array([value], dtype="<f4").tobytes()
+    refused(glb_file(tmp_path, root, bytes(data)), words)
+
+
+def test_the_moving_nodes_and_their_values_are_bounded(tmp_path, monkeypatch):
+    from emotive.io import input_limits as limits
+
+    doc, blob = gltf_document(standing_clip(frames=4), mesh=True)
+    root = json.loads(doc.gltf_to_json())
+    # An armature node above the skin's joints that turns too: 20 moving nodes, 19 joints.
+    root["nodes"].append({"name": "Armature", "children": [0]})
+    root["scenes"][0]["nodes"] = [len(root["nodes"]) - 1, 19]
+    root["animations"][0]["channels"].append(
+        {"sampler": 0, "target": {"node": len(root["nodes"]) - 1, "path": "rotation"}})
+    path = glb_file(tmp_path, root, blob)
+    monkeypatch.setattr(limits, "MAX_MOVING_NODES", 3)
+    refused(path, "animations[0]: moves 20 nodes that place the joints: at most 3 are read")
+    monkeypatch.setattr(limits, "MAX_MOVING_NODES", 20)
+    monkeypatch.setattr(limits, "MAX_VALUES", 4 * 19 * 6)  # the joints' values fit
+    refused(path, "4 frames x 20 moving nodes x 6 = 480 values: at most 456")
+    monkeypatch.setattr(limits, "MAX_VALUES", 4 * 20 * 6)
+    assert read_gltf(path).num_frames == 4

@@ -9,7 +9,8 @@ writing; rotations become unit quaternions ``w, x, y, z``. Only regular files ar
 pipe or device is refused at once), a line at a time within the size budget of
 :mod:`emotive.io.bvh_text` (so a huge line or row is refused after at most 1 MiB), and
 implausible numbers and sizes are refused before anything large is allocated: the limits are
-in :mod:`emotive.io.bvh_limits` and ``docs/limits.md``.
+in :mod:`emotive.io.input_limits` (shared by every format), :mod:`emotive.io.bvh_limits` and
+``docs/limits.md``.
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ import numpy as np
 from emotive.core.motion import Motion
 from emotive.core.skeleton import POSITION_CHANNELS, ROTATION_CHANNELS, Skeleton
 from emotive.errors import BVHError
-from emotive.io import bvh_limits
+from emotive.io import input_limits
 from emotive.io.atomic import atomic_output
 from emotive.io.bvh_limits import (
     UNITS,
@@ -32,12 +33,10 @@ from emotive.io.bvh_limits import (
     detect_unit,
     frame_time_problem,
     height_problem,
-    length_problem,
-    quote,
-    size_problem,
     standing_height,
 )
 from emotive.io.bvh_text import BVHLines, HierarchyWords, open_bvh_text
+from emotive.io.input_limits import length_problem, quote, size_problem
 from emotive.transforms.np_rotations import euler_to_quaternion, quaternion_to_euler
 
 _VALID_CHANNELS = set(POSITION_CHANNELS) | set(ROTATION_CHANNELS)
@@ -119,10 +118,10 @@ def _open_joint(
             f"duplicate joint name {quote(name)} (first on line {joints[seen[name]].line}): "
             "rename one of them",
         )
-    if len(joints) >= bvh_limits.MAX_JOINTS:
+    if len(joints) >= input_limits.MAX_JOINTS:
         raise BVHError(
             tokens.path, line,
-            f"more than {bvh_limits.MAX_JOINTS} joints: at most {bvh_limits.MAX_JOINTS} are "
+            f"more than {input_limits.MAX_JOINTS} joints: at most {input_limits.MAX_JOINTS} are "
             "read; simplify the rig",
         )
     seen[name] = len(joints)
@@ -169,10 +168,10 @@ def _parse_hierarchy(tokens: HierarchyWords) -> list[_Joint]:
             _open_joint(tokens, joints, seen, open_joints[-1])
             open_joints.append(len(joints) - 1)
         elif tok == "End":
-            if end_sites >= bvh_limits.MAX_JOINTS:
+            if end_sites >= input_limits.MAX_JOINTS:
                 raise tokens.error_at_last(
-                    f"more than {bvh_limits.MAX_JOINTS} end sites: at most "
-                    f"{bvh_limits.MAX_JOINTS} are read; simplify the rig"
+                    f"more than {input_limits.MAX_JOINTS} end sites: at most "
+                    f"{input_limits.MAX_JOINTS} are read; simplify the rig"
                 )
             joint.end_sites.append(_parse_end_site(tokens, joint.name))
             end_sites += 1
@@ -210,10 +209,10 @@ def _motion_header(lines: BVHLines) -> tuple[int, float, int]:
         raise BVHError(
             lines.path, frames_line, f"'Frames:' must be a whole number >= 0, found {quote(found)}"
         ) from None
-    if frames > bvh_limits.MAX_FRAMES:
+    if frames > input_limits.MAX_FRAMES:
         raise BVHError(
             lines.path, frames_line,
-            f"'Frames:' is {quote(found)}: at most {bvh_limits.MAX_FRAMES:,} frames are read; "
+            f"'Frames:' is {quote(found)}: at most {input_limits.MAX_FRAMES:,} frames are read; "
             "split the clip",
         )
     found, time_line = _header_value(lines, "Frame Time:")
@@ -321,7 +320,7 @@ def _resolve_unit(unit: str, skeleton_file: Skeleton) -> tuple[str, float]:
 
 
 def _check_values(path: str, joints: list[_Joint], values: np.ndarray, scale: float) -> None:
-    """Refuse implausible lengths and angles (see :mod:`emotive.io.bvh_limits`)."""
+    """Refuse implausible lengths and angles (see :mod:`emotive.io.input_limits`)."""
     offsets = np.stack([j.offset for j in joints] + [o for j in joints for o in j.end_sites])
     chans = [c for j in joints for c in j.channels]
     is_pos = np.array([c in POSITION_CHANNELS for c in chans], dtype=bool)
@@ -387,8 +386,9 @@ def read_bvh(path: str | os.PathLike, unit: str = "auto") -> Motion:
 
     Raises:
         BVHError: the file is missing, not a regular BVH text file, malformed or beyond
-            the limits of :mod:`emotive.io.bvh_limits`; the message names the line and the
-            problem, and quotes at most ``QUOTE_CHARS`` characters of the file.
+            the limits of :mod:`emotive.io.input_limits` and :mod:`emotive.io.bvh_limits`;
+            the message names the line and the problem, and quotes at most ``QUOTE_CHARS``
+            characters of the file.
     """
     path = Path(path)
     with open_bvh_text(path) as fh:

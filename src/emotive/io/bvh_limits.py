@@ -1,14 +1,13 @@
-"""Plausibility limits of the BVH reader and the length-unit detection.
+"""The BVH reader's own limits and the length-unit detection.
 
 A BVH file is text anyone can write, so the reader refuses what no capture produces before
-it allocates or computes anything large: a file bigger than :data:`MAX_FILE_BYTES`, a line
-longer than :data:`MAX_LINE_CHARS` or a header word longer than :data:`MAX_TOKEN_CHARS`
-characters, more than :data:`MAX_JOINTS` joints (or end sites), :data:`MAX_FRAMES` frames or
-:data:`MAX_VALUES` channel values, a frame rate outside :data:`MIN_FPS`-:data:`MAX_FPS`, a
-length beyond :data:`MAX_LENGTH_M` metres, an angle beyond :data:`MAX_ANGLE_DEG` degrees and,
-when the unit is detected, a figure outside :data:`PLAUSIBLE_HEIGHT_M`. Messages quote at
-most :data:`QUOTE_CHARS` characters of the file (:func:`quote`). ``docs/limits.md`` states
-every limit and why.
+it allocates or computes anything large. The limits every motion format shares (file size,
+joints, frames, values, frame rate, lengths) are those of :mod:`emotive.io.input_limits`,
+named here too for the BVH reader's modules; this module adds BVH's own: a line longer than
+:data:`MAX_LINE_CHARS` or a header word longer than :data:`MAX_TOKEN_CHARS` characters, an
+angle beyond :data:`MAX_ANGLE_DEG` degrees and, when the unit is detected, a figure outside
+:data:`PLAUSIBLE_HEIGHT_M`. Messages quote at most :data:`QUOTE_CHARS` characters of the file
+(:func:`quote`). ``docs/limits.md`` states every limit and why.
 
 The length unit is detected from the figure's standing height (:func:`standing_height`: from
 its joint roles when they resolve, else the rest pose's extent, :func:`figure_height`), in
@@ -22,15 +21,26 @@ import numpy as np
 
 from emotive.core.roles import match_roles
 from emotive.core.skeleton import Skeleton
+from emotive.io import input_limits
+
+# The limits every format shares, named here for the BVH reader's modules (one definition).
+from emotive.io.input_limits import MAX_FILE_BYTES as MAX_FILE_BYTES
+from emotive.io.input_limits import MAX_FPS as MAX_FPS
+from emotive.io.input_limits import MAX_FRAMES as MAX_FRAMES
+from emotive.io.input_limits import MAX_JOINTS as MAX_JOINTS
+from emotive.io.input_limits import MAX_LENGTH_M as MAX_LENGTH_M
+from emotive.io.input_limits import MAX_VALUES as MAX_VALUES
+from emotive.io.input_limits import MIN_FPS as MIN_FPS
+from emotive.io.input_limits import QUOTE_CHARS as QUOTE_CHARS
+from emotive.io.input_limits import length_problem as length_problem
+from emotive.io.input_limits import quote as quote
+from emotive.io.input_limits import size_problem as size_problem
 
 #: Metres per file unit for the units a BVH file may use. ``"cmu"`` is the length unit of the
 #: CMU motion-capture ASF files (and the BVH files converted from them): 1/0.45 inches, so a
 #: 1.7 m actor stands about 30 units tall.
 UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254, "cmu": 0.0254 / 0.45}
 
-#: Largest file read (1 GiB): the most channel values (:data:`MAX_VALUES`) written with 9
-#: significant digits take 230-330 MB, so this leaves room for any spacing.
-MAX_FILE_BYTES = 1 << 30
 #: Longest line, in characters (1 MiB): a frame row of the widest rig (:data:`MAX_JOINTS`
 #: joints x 6 channels) with 170 characters per value. Lines are read at most this long, so
 #: a file of one huge line is refused after 1 MiB, not read whole.
@@ -38,26 +48,6 @@ MAX_LINE_CHARS = 1 << 20
 #: Longest word of the hierarchy and motion header (joint names, numbers, keywords), in
 #: characters: rig names run to a few dozen, a float64 written in full to 24.
 MAX_TOKEN_CHARS = 256
-#: Most characters of the file's own text quoted in a message.
-QUOTE_CHARS = 80
-#: Most joints in one hierarchy, and most end sites; full-body rigs with fingers and a face
-#: have a few hundred.
-MAX_JOINTS = 1024
-#: Most frames in one file: over 9 hours at 30 fps, over 16 minutes at 1,000 fps.
-MAX_FRAMES = 1_000_000
-#: Most channel values (frames x channels) in one file, checked from the header before any
-#: array is made: an hour of a 60-joint rig (183 channels) at 30 fps. Reading a file at this
-#: limit peaks at about 540 MB above the interpreter (the values as float64, the quaternions
-#: and positions made from them); 59 million values took over 2 GB and ended in a
-#: ``MemoryError`` under a 3 GB address-space limit.
-MAX_VALUES = 20_000_000
-#: Lowest and highest frame rate (frames per second); ``Frame Time`` is their inverse.
-MIN_FPS = 1.0
-MAX_FPS = 1000.0
-#: Largest absolute offset or position coordinate, in metres after unit conversion: a
-#: capture volume or game level spans at most a few hundred metres, and float32 (the GPU's
-#: type) still resolves 0.1 mm at 1 km.
-MAX_LENGTH_M = 1000.0
 #: Largest absolute rotation channel value in degrees (about 278 turns): exporters unwrap
 #: angles, but beyond this an angle has lost its fractional degrees in float64 noise.
 MAX_ANGLE_DEG = 1e5
@@ -74,20 +64,6 @@ ANKLE_HEIGHT_PER_FOOT = 0.5
 HEAD_TOP_PER_BODY = 0.15
 
 
-def quote(text: str) -> str:
-    """``text`` in quotes, cut to :data:`QUOTE_CHARS` characters and its length when longer.
-
-    Args:
-        text: text of the file that a message shows.
-
-    Returns:
-        ``'text'``, or ``'first characters...' (5,000 characters)``.
-    """
-    if len(text) <= QUOTE_CHARS:
-        return f"'{text}'"
-    return f"'{text[:QUOTE_CHARS - 3]}...' ({len(text):,} characters)"
-
-
 def frame_time_problem(frame_time: float) -> str | None:
     """What is wrong with a ``Frame Time:`` value, or ``None`` when it is plausible.
 
@@ -97,36 +73,14 @@ def frame_time_problem(frame_time: float) -> str | None:
     Returns:
         A message naming the value and the allowed range, or ``None``.
     """
-    low, high = 1.0 / MAX_FPS, 1.0 / MIN_FPS
+    low_fps, high_fps = input_limits.MIN_FPS, input_limits.MAX_FPS
+    low, high = 1.0 / high_fps, 1.0 / low_fps
     if np.isfinite(frame_time) and low <= frame_time <= high:
         return None
     return (
         f"'Frame Time:' is {frame_time:g} s: it must be between {low:g} and {high:g} s "
-        f"({MIN_FPS:g}-{MAX_FPS:g} frames per second); fix the frame time"
+        f"({low_fps:g}-{high_fps:g} frames per second); fix the frame time"
     )
-
-
-def size_problem(frames: int, width: int, n_joints: int) -> str | None:
-    """What is too large about a file's declared size, or ``None``.
-
-    Args:
-        frames: frame count from ``Frames:``.
-        width: channel values per frame.
-        n_joints: joints in the hierarchy.
-
-    Returns:
-        A message naming the count and the limit, or ``None``.
-    """
-    if n_joints > MAX_JOINTS:
-        return f"{n_joints} joints: at most {MAX_JOINTS} are read; split or simplify the rig"
-    if frames > MAX_FRAMES:
-        return f"{frames:,} frames: at most {MAX_FRAMES:,} frames are read; split the clip"
-    if frames * width > MAX_VALUES:
-        return (
-            f"{frames:,} frames x {width} channels = {frames * width:,} values: at most "
-            f"{MAX_VALUES:,} are read; split the clip"
-        )
-    return None
 
 
 def height_problem(height_m: float, unit: str) -> str | None:
@@ -147,27 +101,6 @@ def height_problem(height_m: float, unit: str) -> str | None:
         f"the figure stands {height_m:.3g} m tall with its unit detected as '{unit}': "
         f"{low:g}-{high:g} m is plausible, so the unit or the offsets are wrong; check them or "
         "give the file's unit (--unit on the command line, unit= to read_bvh: m, cm, mm, in, cmu)"
-    )
-
-
-def length_problem(values_m: np.ndarray, what: str) -> str | None:
-    """What is out of range in lengths already converted to metres, or ``None``.
-
-    Args:
-        values_m: any-shaped lengths in metres.
-        what: what they are, for the message (``"joint offsets"``).
-
-    Returns:
-        A message naming the largest value and the limit, or ``None``.
-    """
-    if values_m.size == 0:
-        return None
-    biggest = float(np.abs(values_m).max())
-    if biggest <= MAX_LENGTH_M:
-        return None
-    return (
-        f"{what} reach {biggest:.3g} m: at most {MAX_LENGTH_M:g} m is plausible; check the "
-        "numbers or pass the file's unit (unit='mm', 'cm', 'm' or 'in')"
     )
 
 
