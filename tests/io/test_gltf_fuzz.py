@@ -33,9 +33,15 @@ from emotive.io.gltf_read import read_gltf
 
 #: Cases read by one process (each process pays for importing the reader once).
 BATCH = 200
-#: A batch still running after this many seconds has hung (a case takes well under 5 s; the
-#: hardening campaign's worst took 150 s, a FIFO forever).
-BATCH_TIMEOUT_S = 60
+#: A worker that has printed nothing new for this many seconds has hung in the case it last
+#: started (a case takes well under 5 s of processor time, which each result records; the
+#: hardening campaign's worst took 150 s, a FIFO forever). The worker's progress is watched,
+#: not the batch's wall time, so a busy machine that runs each case slowly is not a hang.
+HANG_S = 120
+#: Seconds between looks at the worker's output.
+POLL_S = 0.2
+#: Processor seconds one case may take.
+CASE_CPU_S = 5.0
 #: Longest message of a refusal: fixed text, an element, quotes of at most 80 characters and
 #: the file's path.
 MAX_MESSAGE_CHARS = 600
@@ -45,6 +51,23 @@ MAX_MESSAGE_CHARS = 600
 def corpus() -> tuple:
     """The corpus, built once for the tests of this module."""
     return tuple(mutants())
+
+
+def _watch(proc: subprocess.Popen, out: Path) -> str | None:
+    """Wait for the worker; kill it if its output stops growing for :data:`HANG_S`."""
+    size, quiet = -1, 0.0
+    while True:
+        try:
+            proc.wait(timeout=POLL_S)
+            return None
+        except subprocess.TimeoutExpired:
+            now = out.stat().st_size
+            quiet = 0.0 if now != size else quiet + POLL_S
+            size = now
+            if quiet >= HANG_S:
+                proc.kill()
+                proc.wait()
+                return "timeout"
 
 
 def _run_batch(cases: list[dict], warmup: str, folder: Path) -> tuple[list[dict], str | None]:
@@ -62,13 +85,7 @@ def _run_batch(cases: list[dict], warmup: str, folder: Path) -> tuple[list[dict]
         proc = subprocess.Popen([sys.executable, str(here / "gltf_mutants.py"), str(listing)],
                                 stdin=subprocess.DEVNULL, stdout=sink,
                                 stderr=subprocess.STDOUT, env=env)
-        try:
-            proc.wait(timeout=BATCH_TIMEOUT_S)
-            hung = None
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
-            hung = "timeout"
+        hung = _watch(proc, out)
     results, started = [], None
     for line in out.read_text(errors="replace").splitlines():
         if not line.startswith("{"):
@@ -134,6 +151,9 @@ def test_no_case_hangs_or_crashes(fuzz):
                if r["outcome"] == "crash"]
     # MemoryError under the 2 GB address-space limit would be a crash too.
     assert crashes == [], crashes[:10]
+    # Each case's own processor time (not the wall clock, which a busy machine stretches).
+    slow = {n: round(r["cpu_s"], 2) for n, r in results.items() if r["cpu_s"] > CASE_CPU_S}
+    assert slow == {}
 
 
 def test_no_case_opens_a_file_outside_its_folder(fuzz):
