@@ -67,3 +67,18 @@ def test_card_says_what_a_model_could_not_honour(values):
     assert "This model walks freely" in text and "one label at a time" in text
     assert "directly from the Bandai Namco" in text
     assert "root's distance from the path (m), mean per walk: not measured" in text
+
+
+def test_card_states_a_check_and_the_draws_taken(values):
+    paths = [trajectory(0, 0, 4.0, 2).summary()]
+    checked = {"checked": True, "reason": "", "clips": 1061,
+               "datasets": ["bandai-namco-1", "bandai-namco-2-locomotion"],
+               "match_fraction": 0.03, "min_coverage": 0.8, "max_draws": 50, "step_m": 0.25,
+               "paths": [{"path_id": 0, "nearest_clip": "dataset-2_walk_normal_001",
+                          "distance_m": 0.41, "coverage": 0.9, "coincides": False,
+                          "relative_gap": 0.052, "draw": 2}]}
+    text = card.card_text(values, checked, manifest.table(_rows(), values), paths, "abc")
+    assert "within a mean gap of 3% of the length compared" in text
+    assert "at least 80% of the trajectory. None coincides. 1 trajectory was drawn again" in text
+    assert "(gap 0.41 m, 5.2% of the length compared, over 90% of the trajectory)" in text
+    assert "| 0 | 2 | " in text and "`dataset-2_walk_normal_001` | 0.41 | 90% |" in text

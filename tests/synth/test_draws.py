@@ -34,6 +34,17 @@ def test_trajectories_depend_on_seed_and_index_alone():
         assert not np.allclose(a[-1], other.path.points[-1])
 
 
+def test_a_later_draw_is_another_trajectory_of_the_same_seed_and_index():
+    first = tr.trajectory(7, 3, 3.0)
+    assert first.draw == 0 and first.summary()["draw"] == 0
+    assert np.array_equal(first.path.points, tr.trajectory(7, 3, 3.0, 0).path.points)
+    later = [tr.trajectory(7, 3, 3.0, k) for k in (1, 2)]
+    assert [t.draw for t in later] == [1, 2]
+    assert np.array_equal(later[0].path.points, tr.trajectory(7, 3, 3.0, 1).path.points)
+    ends = [t.path.points[-1] for t in (first, *later)]
+    assert not np.allclose(ends[0], ends[1]) and not np.allclose(ends[1], ends[2])
+
+
 def test_blends_keep_away_from_the_corners():
     draws = [emo.novel_emotion(0, e, point=False) for e in range(200)]
     w = np.array([d.weights for d in draws])

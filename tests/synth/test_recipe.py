@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from emotive.synth.recipe import Recipe, SynthError, check_formats, recipe_id
+from emotive.synth.recipe import Recipe, SynthError, check_formats, named_recipe, recipe_id
 
 SMALL = {"paths": 2, "emotions": 3, "transitions": 1, "seconds": 4.0}
 
@@ -29,6 +29,17 @@ def test_small_recipe_has_eight_walks_in_order():
                                                                          [3, 4, 5], [6, 7]]
     with pytest.raises(IndexError):
         recipe.sample(8)
+
+
+def test_named_recipes_and_their_changes():
+    assert named_recipe("paper") == Recipe()
+    small = named_recipe("small")
+    assert small == Recipe(**SMALL) and small.total == 8
+    short = named_recipe("small", seconds=3.0, seed=7, paths=None)
+    assert (short.paths, short.seconds, short.seed, short.total) == (2, 3.0, 7, 8)
+    with pytest.raises(SynthError, match="--recipe tiny: no such recipe; give one of paper, "
+                                         "small"):
+        named_recipe("tiny")
 
 
 def test_round_trip_and_id():

@@ -42,6 +42,7 @@ def _fails(monkeypatch, capsys, out, *args) -> str:
     (["--seconds", "0"], ["--seconds"]),
     (["--formats", "npz,fbx"], ["--formats npz,fbx", "unknown fbx"]),
     (["--address", "nonsense"], ["--address nonsense", "HOST:PORT"]),
+    (["--recipe", "tiny"], ["--recipe tiny: no such recipe", "paper, small"]),
 ])
 def test_bad_input_is_one_line_and_writes_nothing(monkeypatch, capsys, tmp_path, args, words):
     line = _fails(monkeypatch, capsys, tmp_path / "set", *SMALL, *args)

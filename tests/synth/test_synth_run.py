@@ -1,9 +1,11 @@
 """Runs on Ray: the small recipe gives 8 walks; 1 and 2 workers, a rerun, a full disk then a
-rerun, a run killed with SIGKILL then restarted, and a two-node cluster all give the same bytes.
+rerun, a run killed with SIGKILL then restarted, and a two-node cluster all give the same bytes;
+3 s walks (trajectories drawn again until novel) from the command line with 2 workers give the
+bytes of 1 worker; a run stopped with SIGINT or SIGTERM leaves no Ray process behind.
 
 The in-process runs share one local Ray of 2 CPUs (module fixture), so its workers load the
-model once; the killed run and the cluster run are ``emotive synth`` processes, as users start
-them. Everything listens on 127.0.0.1 and is stopped at the end.
+model once; the killed runs, the short-walk run and the cluster run are ``emotive synth``
+processes, as users start them. Everything listens on 127.0.0.1 and is stopped at the end.
 """
 
 from __future__ import annotations
@@ -14,27 +16,31 @@ import os
 import signal
 import subprocess
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
 import torch
+from ray_procs import descendants, wait_gone
 
 from disk_faults import fill_disk
 from emotive.errors import OutputError
 from emotive.synth import SyntheticGaits, store, synthesize
-from emotive.synth.recipe import Recipe
+from emotive.synth.recipe import Recipe, named_recipe
 
 ray = pytest.importorskip("ray")
 
-#: The issue's small run: 2 paths x 3 emotions + 2 x 1 transitions, 4 s each, a walk a shard.
-SMALL = Recipe(paths=2, emotions=3, transitions=1, seconds=4.0, shard_size=1)
-CLI_SMALL = ["--paths", "2", "--emotions", "3", "--transitions", "1", "--seconds", "4",
-             "--shard-size", "1"]
+#: The small recipe: 2 paths x 3 emotions + 2 x 1 transitions, 4 s each, here a walk a shard.
+SMALL = named_recipe("small", shard_size=1)
+CLI_SMALL = ["--recipe", "small", "--shard-size", "1"]
 EMOTIVE = str(Path(sys.executable).parent / "emotive")
 #: Hang guard of the command-line runs (nothing is asserted about time).
 RUN_TIMEOUT_S = 300
+#: How long a stopped run's Ray processes may take to end; a run that does not stop Ray
+#: leaves two of its agents for about a minute.
+RAY_GONE_S = 30
 
 
 def files(folder: Path) -> dict[str, str]:
@@ -163,6 +169,47 @@ def _stop_group(proc: subprocess.Popen) -> None:
         pass
     proc.stderr.close()
     proc.wait(timeout=RUN_TIMEOUT_S)
+
+
+def test_short_walks_from_the_command_line_match_one_worker(local_ray, tmp_path):
+    """3 s walks, seed 0: with the data its trajectory 1 is a later draw (the first two follow
+    clips of the data); 2 workers in a command give the bytes of 1 worker here."""
+    short = replace(SMALL, seconds=3.0)
+    one = tmp_path / "one"
+    synthesize(one, short, workers=1, progress=False)
+    two = tmp_path / "two"
+    result = subprocess.run([EMOTIVE, "synth", "--out", str(two), *CLI_SMALL, "--seconds", "3",
+                             "--workers", "2", "--no-progress"], capture_output=True, text=True,
+                            timeout=RUN_TIMEOUT_S)
+    assert result.returncode == 0, result.stderr
+    assert files(two) == files(one)
+    checked = json.loads((one / "novelty.json").read_text())
+    if checked["checked"]:
+        assert not any(p["coincides"] for p in checked["paths"])
+        assert [p["draw"] for p in checked["paths"]] == [0, 2]
+
+
+@pytest.mark.parametrize(("stop", "code"), [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_a_stopped_run_leaves_no_ray_process(tmp_path, stop, code):
+    out = tmp_path / "stopped"
+    proc = subprocess.Popen([EMOTIVE, "synth", "--out", str(out), *CLI_SMALL, "--workers", "2"],
+                            stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True,
+                            start_new_session=True)
+    try:
+        for line in proc.stderr:         # a line per shard written: Ray and its workers run
+            if line.startswith("synth: 1/8"):
+                break
+        started = descendants(proc.pid)
+        proc.send_signal(stop)
+        proc.wait(timeout=RUN_TIMEOUT_S)
+        left = wait_gone(started, RAY_GONE_S)
+    finally:
+        _stop_group(proc)
+    assert proc.returncode == code
+    assert len(started) >= 4             # GCS server, raylet, its agents, workers
+    assert not left, f"{len(left)} of the run's {len(started)} processes still run"
+    assert 1 <= len(list((out / "shards").iterdir())) < 8
+    assert not (out / "manifest.parquet").exists()
 
 
 def test_a_two_node_cluster_gives_the_same_data_set(reference, tmp_path):

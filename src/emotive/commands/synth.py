@@ -4,8 +4,9 @@
 novel trajectories with ``--emotions`` novel emotions on each, plus ``--transitions`` pairs of
 those emotions per trajectory, ``--seconds`` each, into ``--out`` as shards, a manifest and a
 card (:func:`emotive.synth.synthesize`). The defaults are the paper's recipe (3,000 walks of
-10 s). A rerun continues a stopped run; the folder is the same for any ``--workers`` and any
-cluster (``--address``).
+10 s); ``--recipe small`` makes 8 walks of 4 s (:data:`emotive.synth.recipe.RECIPES`). A rerun
+continues a stopped run; the folder is the same for any ``--workers`` and any cluster
+(``--address``).
 
 ``emotive synth classifier-study`` (:mod:`emotive.commands.synth_study`) trains the
 perceived-emotion classifier on real clips and on real clips plus such a folder, and compares
@@ -37,17 +38,26 @@ def synth(
                                   "one this command made with the same options (it "
                                   "continues). Required to make a data set.",
                                   show_default=False)] = None,
-    paths: Annotated[int, typer.Option("--paths", help="Novel trajectories.", min=1)] = 20,
+    recipe_name: Annotated[
+        str, typer.Option("--recipe", help="Named recipe whose counts and --seconds are the "
+                          "defaults: paper (3,000 walks of 10 s) or small (8 walks of 4 s); "
+                          "the options below change them.")] = "paper",
+    paths: Annotated[
+        int | None, typer.Option("--paths", help="Novel trajectories (default: the recipe's).",
+                                 min=1, show_default=False)] = None,
     emotions: Annotated[
-        int, typer.Option("--emotions", help="Novel emotions walked on every trajectory.",
-                          min=1)] = 100,
+        int | None, typer.Option("--emotions", help="Novel emotions walked on every "
+                                 "trajectory (default: the recipe's).", min=1,
+                                 show_default=False)] = None,
     transitions: Annotated[
-        int, typer.Option("--transitions", help="Pairs of those emotions (drawn without "
-                          "replacement) walked as a transition on every trajectory; at most "
-                          "half of --emotions.", min=0)] = 50,
+        int | None, typer.Option("--transitions", help="Pairs of those emotions (drawn "
+                                 "without replacement) walked as a transition on every "
+                                 "trajectory; at most half of --emotions (default: the "
+                                 "recipe's).", min=0, show_default=False)] = None,
     seconds: Annotated[
-        float, typer.Option("--seconds", help="Length of every walk, seconds (1 to 600).",
-                            min=1.0, max=600.0)] = 10.0,
+        float | None, typer.Option("--seconds", help="Length of every walk, seconds (1 to "
+                                   "600; default: the recipe's).", min=1.0, max=600.0,
+                                   show_default=False)] = None,
     seed: Annotated[
         int, typer.Option("--seed", help="Random seed: the same seed gives the same data set.",
                           min=0, max=SEED_MAX)] = 0,
@@ -95,11 +105,11 @@ def synth(
         raise UsageError("Missing option '--out' / '-o'.", ctx)
 
     from emotive.synth.build import synthesize
-    from emotive.synth.recipe import Recipe, check_formats
+    from emotive.synth.recipe import check_formats, named_recipe
 
-    recipe = Recipe(paths=paths, emotions=emotions, transitions=transitions, seconds=seconds,
-                    seed=seed, model=model, shard_size=shard_size,
-                    formats=check_formats(formats), rig_roles=rig_roles)
+    recipe = named_recipe(recipe_name, paths=paths, emotions=emotions, transitions=transitions,
+                          seconds=seconds, seed=seed, model=model, shard_size=shard_size,
+                          formats=check_formats(formats), rig_roles=rig_roles)
     report = synthesize(out, recipe, rig=rig, workers=workers, address=address,
                         progress=progress)
     Console(stderr=True).print(report.summary(), highlight=False, soft_wrap=True)

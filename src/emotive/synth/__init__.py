@@ -35,7 +35,7 @@ import importlib
 from typing import Any
 
 _EXPORTS = {
-    "Recipe": "recipe", "SynthError": "recipe", "synthesize": "build",
+    "Recipe": "recipe", "SynthError": "recipe", "named_recipe": "recipe", "synthesize": "build",
     "SynthReport": "build", "SyntheticGaits": "dataset",
 }
 

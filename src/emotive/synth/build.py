@@ -7,9 +7,10 @@ The main paper's augmented data set (Bhattacharya et al. 2020, section 5.2) made
    ``address``;
 2. the folder is opened (:func:`emotive.synth.store.open_folder`): locked, its recipe
    compared, a killed run's temporary files removed;
-3. the trajectories are checked against the data (:mod:`emotive.synth.novelty`; kept in
-   ``novelty.json``, and checked again by a later run while the data was missing); then
-   ``recipe.json`` is written;
+3. the trajectories are drawn, each again while it coincides with the data
+   (:mod:`emotive.synth.novelty`; the draws and the check kept in ``novelty.json``, and
+   checked again by a later run while the data was missing); then ``recipe.json`` is
+   written;
 4. the shards not yet there are made on Ray (:mod:`emotive.synth.engine`), each written as it
    comes back, so a run that is stopped (Ctrl-C, SIGKILL, a full disk, a lost cluster) keeps
    what it finished and a rerun continues;
@@ -164,25 +165,16 @@ def synthesize(out: str | os.PathLike, recipe: Recipe | None = None, *,
     try:
         done = folder.done_shards(recipe.shards)
         todo = [s for s in range(recipe.shards) if s not in done]
-        paths = [trajectories.trajectory(recipe.seed, p, recipe.seconds)
-                 for p in range(recipe.paths)]
-        report = (novelty.NoveltyReport.from_dict(folder.read_json(store.NOVELTY))
-                  if folder.has(store.NOVELTY) else None)
-        # A check skipped for want of the data runs again, in case the data is there now.
-        checked_now = report is None or not report.checked
-        if checked_now:
-            report = novelty.check_trajectories(paths)
-        novelty.raise_if_coinciding(report)
+        paths, report, fresh = _trajectories(folder, recipe)
         if todo:
             _check_model(recipe)
-        fresh = checked_now and report.checked and folder.has(store.NOVELTY)
         store.write_recipe(folder, report.to_dict(), replace_novelty=fresh)
         stats = None
         if todo:
             show = _Progress(recipe, len(done), progress)
             try:
                 stats = engine.run_shards(
-                    todo, make_shard, (values, rig_motion),
+                    todo, make_shard, (values, rig_motion, report.draws(recipe.paths)),
                     lambda result: folder.write_files(result.files), workers, address,
                     show.update)
             finally:
@@ -199,6 +191,31 @@ def synthesize(out: str | os.PathLike, recipe: Recipe | None = None, *,
                        time.perf_counter() - begin,
                        stats.walks_per_second if stats else 0.0, stats.where if stats else "",
                        stats.steady_walks_per_second if stats else 0.0)
+
+
+def _trajectories(folder: Any, recipe: Recipe) -> tuple[list[trajectories.Trajectory],
+                                                         novelty.NoveltyReport, bool]:
+    """The folder's trajectories, their novelty report, and whether ``novelty.json`` is stale.
+
+    A new folder draws them (:func:`emotive.synth.novelty.novel_trajectories`); a folder keeps
+    the draws its ``novelty.json`` names, and a check skipped there for want of the data (or
+    made with other thresholds) runs again on them, in case the data is there now.
+
+    Raises:
+        NoveltyError: a trajectory that is not novel (see the module it comes from).
+    """
+    if not folder.has(store.NOVELTY):
+        paths, report = novelty.novel_trajectories(recipe.seed, recipe.paths, recipe.seconds)
+        return paths, report, False
+    stored = folder.read_json(store.NOVELTY)
+    report = novelty.NoveltyReport.from_dict(stored)
+    paths = [trajectories.trajectory(recipe.seed, p, recipe.seconds, draw)
+             for p, draw in enumerate(report.draws(recipe.paths))]
+    if report.checked and novelty.same_thresholds(stored):
+        return paths, report, False
+    report = novelty.check_trajectories(paths)
+    novelty.raise_if_coinciding(report)
+    return paths, report, report.checked
 
 
 def _check_model(recipe: Recipe) -> None:

@@ -50,26 +50,34 @@ def _novelty(novelty: dict[str, Any], trajectories: list[dict[str, Any]]) -> lis
                   "command again where the Bandai Namco data is found (`emotive data`) to "
                   "check the trajectories.", ""]
     else:
-        worst = max(novelty["paths"], key=lambda p: p["coverage"] if p["distance_m"] <
-                    novelty["match_distance_m"] else -1.0)
+        fraction = novelty["match_fraction"]
+        worst = max(novelty["paths"], key=lambda p: p["coverage"] if p["relative_gap"] <
+                    fraction else -1.0)
+        again = [p for p in novelty["paths"] if p["draw"]]
+        drawn = (f" {_n(len(again), 'trajectory was', 'trajectories were')} drawn again "
+                 f"because an earlier draw coincided with a clip (the draw is in the table)."
+                 if again else "")
         lines += [
             f"Checked against the root paths of {novelty['clips']} locomotion clips of "
-            f"{' and '.join(novelty['datasets'])}: a trajectory would coincide with a clip if "
-            f"the clip fitted a stretch of it (or it a stretch of the clip) within a mean gap "
-            f"of {novelty['match_distance_m']} m after the best rotation and translation, and "
-            f"the shorter were at least {novelty['min_coverage']:.0%} of the longer's length. "
-            f"None coincides. The closest: trajectory {worst['path_id']} and "
-            f"`{worst['nearest_clip']}` (gap {worst['distance_m']:.2f} m over "
-            f"{worst['coverage']:.0%} of the longer).", ""]
+            f"{' and '.join(novelty['datasets'])}, over each trajectory's own length: a "
+            f"trajectory would coincide with a clip if the clip fitted a stretch of it (or it "
+            f"a stretch of the clip) within a mean gap of {fraction:.0%} of the length "
+            f"compared, after the best rotation and translation, and the stretch spanned at "
+            f"least {novelty['min_coverage']:.0%} of the trajectory. None coincides.{drawn} "
+            f"The closest: trajectory {worst['path_id']} and `{worst['nearest_clip']}` (gap "
+            f"{worst['distance_m']:.2f} m, {worst['relative_gap']:.1%} of the length "
+            f"compared, over {worst['coverage']:.0%} of the trajectory).", ""]
     checks = {p["path_id"]: p for p in novelty.get("paths", [])}
-    lines += ["| path | length (m) | turns | turn angles (deg) | max curvature (1/m) | closest "
-              "clip | gap (m) | coverage |", "| --- | --- | --- | --- | --- | --- | --- | --- |"]
+    lines += ["| path | draw | length (m) | turns | turn angles (deg) | max curvature (1/m) | "
+              "closest clip | gap (m) | coverage |",
+              "| --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
     for t in trajectories:
         c = checks.get(t["path_id"])
         near = (f"`{c['nearest_clip']}` | {c['distance_m']:.2f} | {c['coverage']:.0%}"
                 if c else "not checked | | ")
         angles = ", ".join(f"{a:+.0f}" for a in t["turn_angles_deg"])
-        lines.append(f"| {t['path_id']} | {t['length_m']:.1f} | {t['turns']} | {angles} | "
+        lines.append(f"| {t['path_id']} | {t['draw']} | {t['length_m']:.1f} | "
+                     f"{t['turns']} | {angles} | "
                      f"{t['max_curvature_per_m']:.2f} | {near} |")
     return [*lines, ""]
 

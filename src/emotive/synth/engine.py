@@ -19,16 +19,27 @@ At most ``N`` shards are in flight; results are written in the order they finish
 raises a user-facing error (:class:`~emotive.errors.EmotiveError`) stops the run with that
 error; a worker that dies is retried by Ray (:data:`MAX_RETRIES`).
 
+Stopping: Ctrl-C (SIGINT), SIGTERM and SIGHUP stop the run through ``finally``, which cancels
+the tasks and stops the local Ray with all its processes (``ray.shutdown``; about 4 s), and
+the command exits 130, 143 or 129. Python's default SIGTERM ends the process without
+``finally``, and the handler ``ray.init`` installs aborts it; a driver that ends without
+``ray.shutdown`` leaves the local Ray's dashboard and runtime-env agents running for about a
+minute, until they notice. So while shards run, SIGTERM and SIGHUP are handled as Ctrl-C is.
+Only SIGKILL, which no process can handle, still leaves them to stop by themselves.
+
 Progress: a bar on stderr (walks done, walks/s, time left) on a terminal, else one line per
 finished shard.
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
+import signal
 import socket
+import threading
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from typing import Any
 
@@ -174,7 +185,7 @@ def run_shards(todo: Iterable[int], task: Callable[..., ShardResult], args: tupl
     Args:
         todo: shard indices to make.
         task: the shard function (:func:`emotive.synth.shards.make_shard` with the
-            recipe and rig in ``args`` before the shard).
+            recipe, the rig and the draws in ``args`` before the shard).
         args: its leading arguments.
         write: called in this process with every result, as they finish.
         workers: shards in flight at most (default: local CPUs, or the cluster's).
@@ -192,7 +203,16 @@ def run_shards(todo: Iterable[int], task: Callable[..., ShardResult], args: tupl
     """
     ray = import_ray()
     todo = list(todo)
-    started, workers, where = connect(ray, address, workers)
+    with _exit_on_termination() as install:
+        started, workers, where = connect(ray, address, workers)
+        install()           # again: ray.init puts its own SIGTERM handler in place
+        return _run(ray, started, workers, where, todo, task, args, write, progress)
+
+
+def _run(ray: Any, started: bool, workers: int, where: str, todo: list[int],
+         task: Callable[..., ShardResult], args: tuple, write: Callable[[ShardResult], None],
+         progress: Callable[[str, int, int], None] | None) -> RunStats:
+    """The body of :func:`run_shards` once connected; stops a Ray it started, however it ends."""
     remote = ray.remote(num_cpus=1, max_retries=MAX_RETRIES)(task)
     pending: dict[Any, int] = {}
     shards = walks = first_walks = 0
@@ -230,6 +250,47 @@ def run_shards(todo: Iterable[int], task: Callable[..., ShardResult], args: tupl
                 pass
         if started:
             ray.shutdown()
+
+
+#: Signals that stop a run through ``finally`` (Ctrl-C raises KeyboardInterrupt already).
+STOP_SIGNALS = (signal.SIGTERM, signal.SIGHUP)
+
+
+@contextlib.contextmanager
+def _exit_on_termination() -> Iterator[Callable[[], None]]:
+    """While inside, :data:`STOP_SIGNALS` stop the run and exit ``128 + signal``.
+
+    The handler raises :class:`KeyboardInterrupt`, which Ray passes on from a wait as it
+    passes on Ctrl-C (any other exception it turns into ``SystemExit(1)``); whatever leaves
+    the block after such a signal becomes ``SystemExit(128 + signal)``. Yields a function
+    that installs the handlers again (after ``ray.init`` replaced them); the handlers from
+    before are restored on the way out. Outside the main thread, where Python cannot install
+    handlers, it does nothing.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield lambda: None
+        return
+    before = {s: signal.getsignal(s) for s in STOP_SIGNALS}
+    received: list[int] = []
+
+    def stop(signum: int, frame: Any) -> None:
+        received.append(signum)
+        raise KeyboardInterrupt
+
+    def install() -> None:
+        for s in STOP_SIGNALS:
+            signal.signal(s, stop)
+
+    install()
+    try:
+        yield install
+    except BaseException:
+        if received:
+            raise SystemExit(128 + received[0]) from None
+        raise
+    finally:
+        for s, handler in before.items():
+            signal.signal(s, signal.SIG_DFL if handler is None else handler)
 
 
 def _result(ray: Any, ref: Any, shard: int) -> ShardResult:

@@ -46,6 +46,13 @@ SEED_MAX = 2**32 - 1
 PAPER_PATHS, PAPER_EMOTIONS, PAPER_TRANSITIONS, PAPER_SECONDS = 20, 100, 50, 10.0
 #: Walks stepped in one batch by one task.
 DEFAULT_SHARD_SIZE = 100
+#: Recipes chosen by name (``emotive synth --recipe NAME``), their counts and walk length:
+#: the paper's 3,000 walks, and 8 short ones to try the command (2 x 3 + 2 x 1, 4 s each).
+RECIPES: dict[str, dict[str, Any]] = {
+    "paper": {"paths": PAPER_PATHS, "emotions": PAPER_EMOTIONS,
+              "transitions": PAPER_TRANSITIONS, "seconds": PAPER_SECONDS},
+    "small": {"paths": 2, "emotions": 3, "transitions": 1, "seconds": 4.0},
+}
 
 
 class SynthError(EmotiveError):
@@ -166,6 +173,18 @@ class Recipe:
             formats=tuple(values["formats"]), rig=values.get("rig"),
             rig_roles=values.get("rig_roles"),
         )
+
+
+def named_recipe(name: str, **changes: Any) -> Recipe:
+    """The recipe ``name`` of :data:`RECIPES` with ``changes`` (those not ``None``) applied.
+
+    Raises:
+        SynthError: no recipe has that name, or a change is out of range.
+    """
+    if name not in RECIPES:
+        raise SynthError(f"--recipe {name}: no such recipe; give one of {', '.join(RECIPES)}")
+    given = {key: value for key, value in changes.items() if value is not None}
+    return Recipe(**{**RECIPES[name], **given})
 
 
 @dataclass(frozen=True)

@@ -39,6 +39,7 @@ import io
 import json
 import tempfile
 import zipfile
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -96,8 +97,8 @@ def walk_seed(seed: int, sample: int) -> int:
 
 
 @functools.cache
-def _trajectory(seed: int, path: int, seconds: float) -> Trajectory:
-    return trajectory(seed, path, seconds)
+def _trajectory(seed: int, path: int, seconds: float, draw: int) -> Trajectory:
+    return trajectory(seed, path, seconds, draw)
 
 
 @functools.cache
@@ -115,8 +116,13 @@ def _walker(model: str) -> Any:
     return load_walker(model)
 
 
-def plan(recipe: Recipe, spec: SampleSpec, point: bool) -> dict[str, Any]:
-    """Sample ``spec``'s trajectory, emotions, keyframes and manifest entries of its recipe."""
+def plan(recipe: Recipe, spec: SampleSpec, point: bool, draws: Sequence[int]
+         ) -> dict[str, Any]:
+    """Sample ``spec``'s trajectory, emotions, keyframes and manifest entries of its recipe.
+
+    ``draws`` ``(P,)`` gives the draw of each trajectory
+    (:func:`emotive.synth.novelty.novel_trajectories`).
+    """
     seed = recipe.seed
     if spec.pair is None:
         first, second, start, ramp = _emotion(seed, spec.emotion, point), None, np.nan, np.nan
@@ -126,7 +132,8 @@ def plan(recipe: Recipe, spec: SampleSpec, point: bool) -> dict[str, Any]:
         start, ramp = emo.switch_time(seed, spec.index, recipe.seconds)
     keyframes = emo.schedule_keyframes(first, second, start, ramp)
     return {
-        "trajectory": _trajectory(seed, spec.path, recipe.seconds), "keyframes": keyframes,
+        "trajectory": _trajectory(seed, spec.path, recipe.seconds, int(draws[spec.path])),
+        "keyframes": keyframes,
         "row": {
             "sample_id": spec.index, "kind": "transition" if second else "constant",
             "path_id": spec.path, "emotion_id": -1 if second else first.index,
@@ -148,13 +155,15 @@ def walk_digest(arrays: dict[str, np.ndarray]) -> str:
     return h.hexdigest()
 
 
-def make_shard(values: dict[str, Any], rig: Motion | None, shard: int) -> ShardResult:
+def make_shard(values: dict[str, Any], rig: Motion | None, draws: Sequence[int], shard: int
+               ) -> ShardResult:
     """Make, measure and pack the walks of shard ``shard`` (module docstring).
 
     Args:
         values: the recipe (:meth:`Recipe.to_dict
             <emotive.synth.recipe.Recipe.to_dict>`, with its extra entries).
         rig: the ``--rig`` clip to retarget every walk onto, or ``None``.
+        draws: ``(P,)`` the draw of each trajectory (the folder's ``novelty.json``).
         shard: the shard index.
 
     Returns:
@@ -164,7 +173,7 @@ def make_shard(values: dict[str, Any], rig: Motion | None, shard: int) -> ShardR
     recipe = Recipe.from_dict(values)
     walker = _walker(recipe.model)
     specs = [recipe.sample(i) for i in recipe.shard_range(shard)]
-    plans = [plan(recipe, spec, walker.point) for spec in specs]
+    plans = [plan(recipe, spec, walker.point, draws) for spec in specs]
     batch = walker.walk([p["trajectory"].path for p in plans], [p["keyframes"] for p in plans],
                         [p["row"]["walk_seed"] for p in plans], recipe.seconds)
     motions = [batch.motion(k, f"walk-{spec.index:06d}") for k, spec in enumerate(specs)]

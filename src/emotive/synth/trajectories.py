@@ -11,7 +11,9 @@ straight stretches and a smooth bump on each turn (a raised-cosine ramp of :data
 metres at either end, scaled so the turn's angle is exact), so the heading and the curvature
 are continuous; integrating the heading gives the ``(x, z)`` points, :data:`SPACING` apart.
 
-Draws, for trajectory ``p`` with seed ``s`` (one NumPy generator seeded ``[s, 1, p]``):
+Draws, for trajectory ``p`` with seed ``s`` (one NumPy generator seeded ``[s, 1, p]``; its
+draw ``k > 0``, taken when the earlier ones coincide with the data, :mod:`emotive.synth.novelty`,
+from one seeded ``[s, 1, p, k]``):
 
 * length ``L = seconds x U(LENGTH_PER_SECOND) + LENGTH_MARGIN`` metres: longer than the
   fastest emotion walks in ``seconds`` (about 1.8 m/s), so no agent reaches the end and stops;
@@ -72,12 +74,14 @@ class Trajectory:
         turn_angles_deg: ``(K,)`` signed angle of each turn, degrees (positive: left); a turn
             cut by the end of the path counts with the angle it reaches.
         max_curvature: largest ``|curvature|`` along it, 1/m.
+        draw: which draw of trajectory ``p`` it is (module docstring), 0 for the first.
     """
 
     index: int
     path: GroundPath
     turn_angles_deg: tuple[float, ...]
     max_curvature: float
+    draw: int = 0
 
     @property
     def turns(self) -> int:
@@ -91,23 +95,25 @@ class Trajectory:
 
     def summary(self) -> dict[str, object]:
         """JSON-able facts of the trajectory for the card."""
-        return {"path_id": self.index, "length_m": round(self.length, 2), "turns": self.turns,
+        return {"path_id": self.index, "draw": self.draw, "length_m": round(self.length, 2),
+                "turns": self.turns,
                 "turn_angles_deg": [round(a, 1) for a in self.turn_angles_deg],
                 "max_curvature_per_m": round(self.max_curvature, 3)}
 
 
-def trajectory(seed: int, index: int, seconds: float) -> Trajectory:
+def trajectory(seed: int, index: int, seconds: float, draw: int = 0) -> Trajectory:
     """Trajectory ``index`` of a recipe with ``seed`` and walks of ``seconds`` (module docstring).
 
     Args:
         seed: the recipe's seed.
         index: trajectory index ``p >= 0``.
         seconds: length of the walks on it, seconds.
+        draw: which draw ``k >= 0`` of it (0: the first).
 
     Returns:
         The trajectory; the same arguments give the same points, bit for bit.
     """
-    rng = np.random.default_rng([seed, STREAM, index])
+    rng = np.random.default_rng([seed, STREAM, index] + ([draw] if draw else []))
     length = seconds * rng.uniform(*LENGTH_PER_SECOND) + LENGTH_MARGIN
     straights, angles, arcs = [rng.uniform(MIN_STRAIGHT, MAX_STRAIGHT)], [], []
     while sum(straights) + sum(arcs) < length:
@@ -126,7 +132,7 @@ def trajectory(seed: int, index: int, seconds: float) -> Trajectory:
     starts = np.cumsum(straights[:-1]) + np.concatenate(([0.0], np.cumsum(arcs[:-1])))
     reached = [float(np.degrees(angle) * min(1.0, (length - start) / arc))
                for angle, start, arc in zip(angles, starts, arcs, strict=True) if start < length]
-    return Trajectory(index, path, tuple(reached), float(np.abs(kappa).max()))
+    return Trajectory(index, path, tuple(reached), float(np.abs(kappa).max()), draw)
 
 
 def _curvature(straights: np.ndarray, angles: np.ndarray, arcs: np.ndarray) -> np.ndarray:
