@@ -23,6 +23,7 @@ refusals name the FBX file. Blender's output is kept in a file and only its last
 from __future__ import annotations
 
 import os
+import resource
 import shutil
 import subprocess
 import tempfile
@@ -38,6 +39,10 @@ FBX_SUFFIXES = (".fbx",)
 
 #: Longest a conversion may take, seconds (Blender starts in seconds; a huge scene takes more).
 TIMEOUT_S = 600
+
+#: Address space Blender may take, bytes: it starts in under 2 GiB, and a damaged FBX whose
+#: counts Blender's importer believes took 23 GB of memory without this limit.
+MEMORY_LIMIT_BYTES = 4 << 30
 
 #: Most bytes of Blender's output read for its last message.
 LOG_TAIL_BYTES = 1 << 16
@@ -133,7 +138,7 @@ def _convert(path: Path, exe: str, copy: Path, folder: Path, unit: str,
                 [exe, "-b", "--factory-startup", "--python-exit-code", "2",
                  "--python-expr", CONVERT, "--", str(copy), str(out)],
                 stdin=subprocess.DEVNULL, stdout=sink, stderr=subprocess.STDOUT,
-                timeout=TIMEOUT_S, check=False, cwd=folder)
+                timeout=TIMEOUT_S, check=False, cwd=folder, preexec_fn=_limit_memory)
         except subprocess.TimeoutExpired:
             raise MotionFileError(path, f"Blender did not convert it within {TIMEOUT_S} s; "
                                   "export it as .glb from your tool instead") from None
@@ -146,6 +151,11 @@ def _convert(path: Path, exe: str, copy: Path, folder: Path, unit: str,
     except MotionFileError as exc:
         raise MotionFileError(path, f"Blender's conversion of it is refused: {exc.problem}") \
             from None
+
+
+def _limit_memory() -> None:
+    """In Blender's process, before it starts: at most :data:`MEMORY_LIMIT_BYTES`."""
+    resource.setrlimit(resource.RLIMIT_AS, (MEMORY_LIMIT_BYTES, MEMORY_LIMIT_BYTES))
 
 
 def _reason(log: Path, code: int, copy: Path, path: Path) -> str:
