@@ -17,7 +17,7 @@ $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install -q --upgrade pip
 	$(BIN)/python -m pip install -q torch==2.13.0
-	$(BIN)/python -m pip install -q -e '.[dev,bench,eval,docs,serve,onnx,study,synth]'
+	$(BIN)/python -m pip install -q -e '.[dev,bench,eval,docs,serve,onnx,study,synth,crowd]'
 	touch $@
 
 install: $(STAMP)
@@ -47,20 +47,21 @@ test: install lint $(THREEJS)/node_modules/.package-lock.json \
 test-stress:
 	bash .ci/stress $(MAKE) test
 
+# Outputs are replaced with --force, so the demo can run again over its own folder.
 demo: install
 	mkdir -p demo_out
 	for e in happy sad angry neutral; do \
 		$(BIN)/emotive generate --emotion $$e --path circle --seconds 10 \
-			--out demo_out/walk_$$e.bvh --preview demo_out/walk_$$e.mp4 || exit 1; \
+			--out demo_out/walk_$$e.bvh --preview demo_out/walk_$$e.mp4 --force || exit 1; \
 	done
 	$(BIN)/emotive generate --emotion-schedule examples/angry-to-happy.json --path figure8 \
-		--seconds 20 --out demo_out/angry_to_happy.bvh --preview demo_out/angry_to_happy.mp4
+		--seconds 20 --out demo_out/angry_to_happy.bvh --preview demo_out/angry_to_happy.mp4 --force
 	$(BIN)/emotive generate --model fcrbm --emotion "valence=-0.8,arousal=-0.5" --seconds 10 \
-		--out demo_out/fcrbm_low.bvh --preview demo_out/fcrbm_low.mp4
-	$(BIN)/emotive generate --emotion happy --path circle --seconds 10 --out demo_out/walk_happy.glb
+		--out demo_out/fcrbm_low.bvh --preview demo_out/fcrbm_low.mp4 --force
+	$(BIN)/emotive generate --emotion happy --path circle --seconds 10 --out demo_out/walk_happy.glb --force
 	$(BIN)/emotive data fetch bandai-namco-1
 	$(BIN)/emotive features "$$($(BIN)/emotive data path bandai-namco-1)/data/$(CLIP)" \
-		--out demo_out/features.csv --plot demo_out/features.png
+		--out demo_out/features.csv --plot demo_out/features.png --force
 	@echo "demo outputs in $(CURDIR)/demo_out:"
 	@ls -1 demo_out
 	@echo ""

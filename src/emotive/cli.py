@@ -1,10 +1,10 @@
 """The ``emotive`` command line: one entry point, verb-first sub-commands.
 
-``generate``, ``train``, ``transfer``, ``reconstruct``, ``retarget``, ``evaluate``, ``models``,
-``info``, ``features``, ``preview``, ``classify``, ``data``, ``serve``, ``export``, ``study``
-and ``synth``; each lives in :mod:`emotive.commands` and this module registers them. The old
-spellings ``fcrbm train|generate`` and ``resample`` work for one release, with one deprecation
-line.
+``generate``, ``crowd``, ``train``, ``transfer``, ``reconstruct``, ``retarget``, ``evaluate``,
+``models``, ``info``, ``features``, ``preview``, ``classify``, ``data``, ``serve``, ``export``,
+``study`` and ``synth``; each lives in :mod:`emotive.commands` and this module registers
+them. The old spellings ``fcrbm train|generate`` and ``resample`` work for one release, with
+one deprecation line.
 
 :func:`main` runs the app without click's own error handling, so that every invalid value,
 click's usage and range errors as well as every :class:`~emotive.errors.EmotiveError`, prints
@@ -23,6 +23,7 @@ from typer._click.exceptions import NoArgsIsHelpError, UsageError
 
 import emotive
 from emotive.commands.classify import classify
+from emotive.commands.crowd import crowd
 from emotive.commands.data import app as data_app
 from emotive.commands.evaluate import evaluate
 from emotive.commands.export import app as export_app
@@ -68,6 +69,7 @@ def _root(
 
 
 app.command("generate")(generate)
+app.command("crowd")(crowd)
 app.add_typer(train_app, name="train")
 app.command("transfer")(transfer)
 app.command("reconstruct")(reconstruct)
