@@ -210,3 +210,23 @@ def test_the_pages_path_samples_match_python(tmp_path):
     ((length, x0, z0),) = results[-1]
     assert length == pytest.approx(2 * np.pi * 1.5, rel=1e-4)
     assert (x0, z0) == pytest.approx((1.0, -2.0), abs=1e-3)
+
+
+def test_agent_json_carries_the_emotion_to_navigation_table(web_export):
+    meta = json.loads((web_export.folder / "agent.json").read_text())
+    nav, model = meta["navigation"], load_gait_model()
+    assert nav["columns"] == ["desired_speed", "radius", "time_gap", "yield_strength",
+                              "yield_range"]
+    assert list(nav["rows"]) == list(model.labels) == list(nav["engines"])
+    speed = np.asarray(model.controls.speed) * model.fps
+    np.testing.assert_allclose([nav["rows"][n][0] for n in model.labels], speed, atol=1e-4)
+    unity = {n: nav["engines"][n]["unity"]["avoidancePriority"] for n in model.labels}
+    godot = {n: nav["engines"][n]["godot"]["avoidance_priority"] for n in model.labels}
+    # Angry yields least (others give way: most important), sad most; neutral is the default.
+    assert unity["angry"] < unity["happy"] <= unity["neutral"] == 50 < unity["sad"] <= 99
+    assert godot["angry"] > godot["neutral"] > godot["sad"] >= 0
+    for n in model.labels:
+        row, engines = dict(zip(nav["columns"], nav["rows"][n], strict=True)), nav["engines"][n]
+        assert engines["unreal"]["AgentRadius"] == pytest.approx(100 * row["radius"], abs=0.01)
+        assert engines["godot"]["time_horizon_agents"] == pytest.approx(row["time_gap"],
+                                                                         abs=1e-3)

@@ -51,7 +51,8 @@ import numpy as np
 
 from emotive.data.emotion import DEFAULT_LABELS, valence_arousal, weights_from_valence_arousal
 
-__all__ = ["COLUMNS", "TABLE", "NavParams", "navigation_params", "navigation_rows"]
+__all__ = ["COLUMNS", "TABLE", "NavParams", "engine_parameters", "navigation_params",
+           "navigation_rows", "navigation_table"]
 
 #: Parameter names, in table order.
 COLUMNS = ("radius", "time_gap", "yield_strength", "yield_range")
@@ -127,3 +128,66 @@ def navigation_rows(weights: np.ndarray, labels: Sequence[str], walk_speed: np.n
     mix = weights_from_valence_arousal(valence_arousal(w, labels), DEFAULT_LABELS) @ _rows()
     speed = (w @ np.asarray(walk_speed, dtype=np.float64)) * np.asarray(pace, dtype=np.float64)
     return np.concatenate((speed[:, None], mix), 1)
+
+
+#: ``yield_strength`` of the neutral row and the change of one engine priority step: the
+#: engines' priorities are set by the same ordering as the table's yielding (see
+#: :func:`engine_parameters`).
+NEUTRAL_YIELD = TABLE["neutral"][2]
+PRIORITY_PER_YIELD = 10.0
+
+
+def engine_parameters(params: NavParams) -> dict[str, dict[str, float]]:
+    """One agent's parameters as the game engines' crowd agents name them.
+
+    The mapping is ours (``docs/runtime.md``): speed and radius carry over in the engine's
+    units; the yielding becomes a priority (Unity's ``avoidancePriority``, 0 most important to
+    99, 50 by default; Godot's ``avoidance_priority``, 0 to 1, where a higher one is avoided by
+    the others) or a scale of the separation weight (Unreal's Detour crowd); the time gap is
+    Godot's ``time_horizon_agents``, which Unity and Unreal lack.
+
+    Args:
+        params: the agent's parameters (:func:`navigation_params`).
+
+    Returns:
+        ``{"unity": ..., "unreal": ..., "godot": ...}``, each a dict of property values.
+    """
+    unity = int(np.clip(round(50 + PRIORITY_PER_YIELD * (params.yield_strength - NEUTRAL_YIELD)),
+                        0, 99))
+    engines = {
+        "unity": {"speed": params.desired_speed, "radius": params.radius,
+                  "avoidancePriority": unity},
+        "unreal": {"MaxWalkSpeed": 100.0 * params.desired_speed,
+                   "AgentRadius": 100.0 * params.radius,
+                   "CrowdSeparationWeightScale": params.yield_strength / NEUTRAL_YIELD,
+                   "CrowdCollisionQueryRangeScale": params.yield_range / TABLE["neutral"][3]},
+        "godot": {"max_speed": params.desired_speed, "radius": params.radius,
+                  "avoidance_priority": round(1.0 - unity / 99.0, 4),
+                  "time_horizon_agents": params.time_gap},
+    }
+    return {engine: {k: round(float(v), 4) if isinstance(v, float) else v
+                     for k, v in values.items()} for engine, values in engines.items()}
+
+
+def navigation_table(labels: Sequence[str], walk_speed: np.ndarray) -> dict:
+    """The emotion-to-navigation table of a model, as the exported ``agent.json`` carries it.
+
+    Args:
+        labels: the model's ``C`` labels.
+        walk_speed: ``(C,)`` the gait model's walking speed per label, m/s.
+
+    Returns:
+        ``columns`` (the fields of :class:`NavParams`), ``rows`` (each label's values, its
+        desired speed the gait's own pace), ``engines`` (each label's
+        :func:`engine_parameters`) and ``blend``: how a blend or a valence/arousal point gets
+        its row.
+    """
+    rows, engines = {}, {}
+    for k, label in enumerate(labels):
+        params = navigation_params(np.eye(len(labels))[k], labels, walk_speed)
+        rows[label] = [round(float(v), 4) for v in vars(params).values()]
+        engines[label] = engine_parameters(params)
+    return {"columns": list(NavParams.__dataclass_fields__), "rows": rows, "engines": engines,
+            "blend": "the rows of happy, sad, angry and neutral mixed by the valence/arousal "
+                     "kernel of `emotion` (points, kernel_width); the desired speed is the "
+                     "emotion weights times each label's desired speed, times the pace"}

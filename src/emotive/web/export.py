@@ -35,6 +35,7 @@ from typing import Any
 import numpy as np
 
 from emotive.core import Motion
+from emotive.crowd.emotion_table import navigation_table
 from emotive.data.circumplex import VA_KERNEL_WIDTH, label_points
 from emotive.errors import ConfigError, OutputError
 from emotive.io.atomic import output_error
@@ -103,7 +104,9 @@ def web_metadata(model: GaitModel, step: dict[str, str]) -> dict[str, Any]:
         rig as ``/api/skeleton`` gives it (``joints``, ``parents``, ``end_site_parents``,
         ``offsets``, ``mover``); ``emotion``: ``labels``, each label's valence/arousal
         ``points``, the ``point_labels`` a valence/arousal point blends and the blend's
-        ``kernel_width``.
+        ``kernel_width``; ``navigation``: the crowd's emotion-to-navigation table with each
+        label's parameters for Unity, Unreal and Godot
+        (:func:`~emotive.crowd.emotion_table.navigation_table`).
     """
     sk = model.controls.skeleton
     labels = list(model.labels)
@@ -132,6 +135,7 @@ def web_metadata(model: GaitModel, step: dict[str, str]) -> dict[str, Any]:
             "point_labels": list(point_labels(labels) or labels),
             "kernel_width": VA_KERNEL_WIDTH,
         },
+        "navigation": navigation_table(labels, np.asarray(model.controls.speed) * model.fps),
     }
 
 
