@@ -1,23 +1,31 @@
-"""The hostile-clients campaign against ``emotive serve``: one watcher, twenty floods.
+"""The hostile-clients campaign against ``emotive serve``: one watcher, 26 hostile clients.
 
-The server runs as its own process (``emotive serve --port 0``), as users run it; the twenty
-hostile connections run in another process (``python serve_hostile.py flood URL SECONDS``,
-at niceness 10: in the field they run on other machines), so that neither shares an
-interpreter lock with the watcher, which adds five agents, reads frames and pings in a thread
-of the calling process. The hostile connections, by number ``k``:
+The server runs as its own process (``emotive serve --port 0``), as users run it; the hostile
+connections run in another process (``python serve_hostile.py flood URL SECONDS``, at
+niceness 10: in the field they run on other machines), so that neither shares an interpreter
+lock with the watcher, which adds five agents, reads frames and pings in a thread of the
+calling process (:mod:`hostile_watch`). The hostile connections are of the kinds
+:data:`KINDS` (twice each of 0-9, then the later ones):
 
-* ``k % 10`` 0-2: ``add_agent`` on a built-in circle, as fast as the server reads;
+* 0-2: ``add_agent`` on a built-in circle, as fast as the server reads;
 * 3-5: ``add_agent`` on a drawn path of :data:`PATH_POINTS` points (the most a path may
   have) over about 400 m;
 * 6: ``set_emotion`` with a schedule of :data:`KEYFRAMES` keyframes (about 680 KB);
 * 7: text that is not JSON;
 * 8: messages holding ``NaN``, ``Infinity`` and ``1e999``;
-* 9: out-of-range values (a pace of 9, a target 10 km away, an unknown agent).
+* 9: out-of-range values (a pace of 9, a target 10 km away, an unknown agent);
+* 10 (:data:`BLEND`): ``set_emotion`` on its own agent with schedules of 256 blended
+  keyframes (the most a schedule may have; 30 ms of preparation each), at the rate limit;
+* 11 (:data:`CHURN`): an ``add_agent`` flood that removes each new agent as soon as it is
+  answered and adds the next, at the rate limit (every agent a join: a warm-up of the network);
+* 12 (:data:`DEAF`): connects and never reads;
+* 13 (:data:`SLOW`): reads one message every :data:`SLOW_READ` seconds.
 
 Every message but the non-JSON ones carries a ``ref``; the flood counts what it sent and
 what came back. :func:`campaign` returns the watcher's frames per wall second, its ping round
-trips, the server's RSS before and after, the server's own frame counts (``/api/stats``),
-and the floods' counts. As a script it prints them as JSON::
+trips, the server's RSS before and after, the server's own frame counts (``/api/stats``,
+polled through the flood: when the slow readers were dropped), and the floods' counts. As a
+script it prints them as JSON::
 
     python tests/serve/serve_hostile.py campaign --seconds 20 [-- SERVER ARGS]
 
@@ -28,89 +36,61 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import contextlib
 import json
 import math
 import os
-import re
-import signal
 import subprocess
 import sys
 import threading
 import time
-from collections.abc import Iterator
-from contextlib import contextmanager
-from pathlib import Path
 from typing import Any
 
 import httpx
 import websockets
+from hostile_watch import (
+    SETTLE_FRAMES,
+    START_TIMEOUT,
+    Watcher,
+    frames_after,
+    rss_mb,
+    server_process,
+    stats,
+    ws_url,
+)
 
+#: Kinds of the later attackers (see the module docstring).
+BLEND, CHURN, DEAF, SLOW = 10, 11, 12, 13
+#: The kind of each hostile connection.
+KINDS = [*range(10), *range(10), BLEND, BLEND, CHURN, CHURN, DEAF, SLOW]
 #: Hostile connections.
-CONNECTIONS = 20
+CONNECTIONS = len(KINDS)
 #: Points of a maximal drawn path.
 PATH_POINTS = 10_000
 #: Keyframes of the large schedule (the campaign of issue 38).
 KEYFRAMES = 20_000
+#: Keyframes of a blended schedule (the most a schedule may have).
+BLEND_KEYFRAMES = 256
+#: The blends its keyframes cycle through (weights, text, a valence/arousal point).
+BLENDS: list[dict[str, Any]] = [{"emotion": {"happy": 0.5, "sad": 0.3, "angry": 0.2}},
+                                {"emotion": "happy=0.4,neutral=0.6"},
+                                {"valence": 0.3, "arousal": -0.2}]
+#: Seconds between two messages of an attacker at the rate limit (the server's 100 a second).
+RATE_PERIOD = 0.01
+#: Seconds between two reads of the slow reader.
+SLOW_READ = 0.5
+#: Seconds between two polls of the server's counters during the flood.
+POLL_EVERY = 0.5
 #: Niceness of the floods' process (lower priority than the server and the watcher).
 FLOOD_NICENESS = 10
-#: Seconds the server may take to start, and the floods to connect: hang guards.
-START_TIMEOUT = 180.0
 #: Messages a hostile connection keeps unanswered at most (it floods, but reads its replies,
 #: so that every message's reply can be checked), and for messages over 4 KB.
 IN_FLIGHT = 200
 IN_FLIGHT_LARGE = 8
-#: Agents the watcher adds before the quiet watch (so that the engine is warm).
-WATCHED_AGENTS = 5
-#: Seconds between the watcher's pings.
-PING_EVERY = 0.2
 #: Seconds the floods wait at the end for the replies still due: a hang guard.
 DRAIN_TIMEOUT = 60.0
 #: The line the floods print once all their connections are open.
 READY = "flooding"
-_URL = re.compile(r"app:\s+(http://\S+?)/")
-
-
-def rss_mb(pid: int) -> float:
-    """Resident memory of process ``pid``, MB (``/proc``; Linux)."""
-    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
-        if line.startswith("VmRSS:"):
-            return int(line.split()[1]) / 1024.0
-    raise RuntimeError(f"no VmRSS for process {pid}")
-
-
-@contextmanager
-def server_process(*args: str) -> Iterator[tuple[str, subprocess.Popen]]:
-    """Run ``emotive serve --port 0 ARGS``; yield its base URL and process; stop it."""
-    proc = subprocess.Popen(
-        [sys.executable, "-c", "from emotive.cli import main; main()", "serve", "--port", "0",
-         *args], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    lines: list[str] = []
-    found = threading.Event()
-
-    def drain() -> None:
-        for line in proc.stdout:
-            lines.append(line)
-            if _URL.search(line):
-                found.set()
-
-    threading.Thread(target=drain, daemon=True).start()
-    try:
-        deadline = time.monotonic() + START_TIMEOUT
-        while not found.wait(0.2):
-            if proc.poll() is not None or time.monotonic() > deadline:
-                raise RuntimeError(f"emotive serve did not start: {''.join(lines)[-2000:]}")
-        yield next(m.group(1) for m in map(_URL.search, lines) if m), proc
-    finally:
-        proc.send_signal(signal.SIGINT)
-        try:
-            proc.wait(30)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
-
-
-def _ws(url: str) -> str:
-    return url.replace("http://", "ws://", 1) + "/ws"
 
 
 # ------------------------------------------------------------------------------ the floods
@@ -125,8 +105,9 @@ def _long_path() -> list[list[float]]:
     return out
 
 
-def hostile_texts(kind: int) -> list[str]:
-    """The messages hostile connection kind ``kind`` (0-9) cycles through, ``REF`` for its ref."""
+def hostile_texts(kind: int, agent: int = 0) -> list[str]:
+    """The messages hostile connection kind ``kind`` (0-10) cycles through, ``REF`` for its
+    ref (``agent``: the agent a kind-10 connection added)."""
     if kind <= 2:
         return ['{"type": "add_agent", "path": "circle", "ref": "REF"}']
     if kind <= 5:
@@ -143,34 +124,96 @@ def hostile_texts(kind: int) -> list[str]:
                 '{"type": "set_pace", "id": 0, "pace": Infinity, "ref": "REF"}',
                 '{"type": "add_agent", "path": [[0, 0], [-Infinity, 1]], "ref": "REF"}',
                 '{"type": "set_target", "id": 0, "target": [1e999, 0], "ref": "REF"}']
+    if kind == BLEND:
+        schedule = [{"t": round(0.05 * k, 2), **BLENDS[k % len(BLENDS)]}
+                    for k in range(BLEND_KEYFRAMES)]
+        return [json.dumps({"ref": "REF", "type": "set_emotion", "id": agent,
+                            "schedule": schedule})]
     return ['{"type": "set_pace", "id": 0, "pace": 9, "ref": "REF"}',
             '{"type": "set_target", "id": 0, "target": [10000, 0], "ref": "REF"}',
             '{"type": "remove_agent", "id": 987654321, "ref": "REF"}',
             '{"type": "add_agent", "path": {"shape": "circle", "radius": 1e6}, "ref": "REF"}']
 
 
-async def _flood(ws: Any, k: int, texts: list[str], seconds: float) -> dict[str, Any]:
-    """One hostile connection: send its messages for ``seconds``, then collect the replies."""
-    in_flight = IN_FLIGHT_LARGE if len(texts[0]) > 4096 else IN_FLIGHT
-    counts: dict[str, Any] = {"kind": k % 10, "sent": 0, "with_ref": 0, "replies": 0,
-                              "agents": 0, "errors": 0, "answered": 0, "closed": None,
-                              "messages": set()}
-    refs: set[str] = set()
-    async def read() -> None:
+class Tally:
+    """What one hostile connection sent and got back (its reader runs as a task).
+
+    Attributes:
+        counts: ``kind``, ``sent``, ``with_ref``, ``replies``, ``agents``, ``errors``,
+            ``answered`` (replies that carried a ref it sent), ``closed`` (the close code),
+            ``messages`` (some error texts), ``missing_refs`` (refs never answered).
+        replies: every reply with a ref, by ref.
+    """
+
+    def __init__(self, kind: int) -> None:
+        self.counts: dict[str, Any] = {"kind": kind, "sent": 0, "with_ref": 0, "replies": 0,
+                                       "agents": 0, "errors": 0, "answered": 0,
+                                       "closed": None, "messages": set()}
+        self.refs: set[str] = set()
+        self.replies: dict[str, dict[str, Any]] = {}
+        self.changed = asyncio.Event()
+
+    def sending(self, ref: str | None) -> None:
+        """Count a message about to be sent (with ``ref``, or none)."""
+        if ref is not None:
+            self.refs.add(ref)
+
+    def sent(self, ref: str | None) -> None:
+        """Count a message sent."""
+        self.counts["sent"] += 1
+        self.counts["with_ref"] += ref is not None
+
+    async def read(self, ws: Any) -> None:
+        """Read every reply until the connection closes (frames are skipped)."""
         async for message in ws:
             if isinstance(message, bytes):
                 continue
             reply = json.loads(message)
-            counts["replies"] += 1
-            counts["agents"] += reply.get("type") == "agent"
-            counts["errors"] += reply.get("type") == "error"
+            c = self.counts
+            c["replies"] += 1
+            c["agents"] += reply.get("type") == "agent"
+            c["errors"] += reply.get("type") == "error"
             if reply.get("type") == "error":
-                counts["messages"].add(reply["message"][:120])
-            if reply.get("ref") in refs:
-                refs.discard(reply["ref"])
-                counts["answered"] += 1
+                c["messages"].add(reply["message"][:120])
+            if reply.get("ref") in self.refs:
+                self.refs.discard(reply["ref"])
+                self.replies[reply["ref"]] = reply
+                c["answered"] += 1
+            self.changed.set()
 
-    reader = asyncio.create_task(read())
+    async def drain(self, reader: asyncio.Task) -> None:
+        """Wait for the replies still due (a hang guard of DRAIN_TIMEOUT)."""
+        deadline = time.monotonic() + DRAIN_TIMEOUT
+        while (self.counts["replies"] < self.counts["sent"] and time.monotonic() < deadline
+               and not reader.done()):
+            await asyncio.sleep(0.05)
+
+    def result(self, ws: Any) -> dict[str, Any]:
+        """The counts, once the connection is done."""
+        self.counts["closed"] = ws.close_code
+        self.counts["missing_refs"] = len(self.refs)
+        self.counts["messages"] = sorted(self.counts["messages"])[:8]
+        return self.counts
+
+
+async def _send(ws: Any, tally: Tally, text: str, ref: str | None, end: float) -> bool:
+    """Send one message before ``end``; ``False``: the server no longer reads it in time."""
+    tally.sending(ref)
+    try:
+        await asyncio.wait_for(ws.send(text), max(end - time.monotonic(), 0.01))
+    except TimeoutError:
+        tally.refs.discard(ref)
+        return False
+    tally.sent(ref)
+    return True
+
+
+async def _flood(ws: Any, tally: Tally, k: int, texts: list[str], seconds: float,
+                 pace: float = 0.0) -> None:
+    """Send ``texts`` in turn for ``seconds`` (``pace`` seconds apart at least), then
+    collect the replies."""
+    in_flight = IN_FLIGHT_LARGE if len(texts[0]) > 4096 else IN_FLIGHT
+    reader = asyncio.create_task(tally.read(ws))
     end = time.monotonic() + seconds
     n = 0
     try:
@@ -178,48 +221,118 @@ async def _flood(ws: Any, k: int, texts: list[str], seconds: float) -> dict[str,
             text, ref = texts[n % len(texts)], None
             if "REF" in text:
                 ref = f"c{k}m{n}"
-                refs.add(ref)
                 text = text.replace('"REF"', f'"{ref}"')
-            try:
-                await asyncio.wait_for(ws.send(text), max(end - time.monotonic(), 0.01))
-            except TimeoutError:
-                refs.discard(ref)
+            if not await _send(ws, tally, text, ref, end):
                 break
-            counts["sent"] += 1
-            counts["with_ref"] += ref is not None
             n += 1
-            while (counts["sent"] - counts["replies"] >= in_flight
+            if pace:
+                await asyncio.sleep(pace)
+            while (tally.counts["sent"] - tally.counts["replies"] >= in_flight
                    and not reader.done()):
                 await asyncio.sleep(0.01)
-        deadline = time.monotonic() + DRAIN_TIMEOUT
-        while counts["replies"] < counts["sent"] and time.monotonic() < deadline:
-            if reader.done():
-                break
-            await asyncio.sleep(0.05)
+        await tally.drain(reader)
     except websockets.ConnectionClosed:
         pass
     finally:
-        counts["closed"] = ws.close_code
         reader.cancel()
-    counts["missing_refs"] = len(refs)
-    counts["messages"] = sorted(counts["messages"])[:8]
-    return counts
+
+
+async def _reply(tally: Tally, ref: str, reader: asyncio.Task) -> dict[str, Any] | None:
+    """The reply carrying ``ref`` (``None``: the connection closed or DRAIN_TIMEOUT passed)."""
+    deadline = time.monotonic() + DRAIN_TIMEOUT
+    while ref not in tally.replies and not reader.done() and time.monotonic() < deadline:
+        tally.changed.clear()
+        with contextlib.suppress(TimeoutError):
+            await asyncio.wait_for(tally.changed.wait(), 1.0)
+    return tally.replies.get(ref)
+
+
+async def _own_agent(ws: Any, tally: Tally, k: int) -> tuple[int, asyncio.Task]:
+    """Add the connection's own agent (before its flood); its id (0 if refused)."""
+    reader = asyncio.create_task(tally.read(ws))
+    ref = f"c{k}own"
+    await _send(ws, tally, json.dumps({"type": "add_agent", "ref": ref}), ref, math.inf)
+    reply = await _reply(tally, ref, reader)
+    return (reply["id"] if reply and reply.get("type") == "agent" else 0), reader
+
+
+async def _churn(ws: Any, tally: Tally, k: int, seconds: float) -> None:
+    """Add an agent, remove it once answered, add the next: every agent a join."""
+    reader = asyncio.create_task(tally.read(ws))
+    end = time.monotonic() + seconds
+    n = 0
+    try:
+        while time.monotonic() < end:
+            ref = f"c{k}a{n}"
+            if not await _send(ws, tally, json.dumps({"type": "add_agent", "ref": ref}), ref,
+                               end):
+                break
+            reply = await _reply(tally, ref, reader)
+            if reply is not None and reply.get("type") == "agent":
+                gone = f"c{k}r{n}"
+                await _send(ws, tally, json.dumps({"type": "remove_agent", "id": reply["id"],
+                                                   "ref": gone}), gone, end)
+            n += 1
+            await asyncio.sleep(RATE_PERIOD)
+        await tally.drain(reader)
+    except websockets.ConnectionClosed:
+        pass
+    finally:
+        reader.cancel()
+
+
+async def _slow(ws: Any, tally: Tally, seconds: float, period: float | None) -> None:
+    """Read one message every ``period`` seconds (``None``: none) for ``seconds``."""
+    end = time.monotonic() + seconds
+    reads = 0
+    with contextlib.suppress(websockets.ConnectionClosed):
+        while time.monotonic() < end:
+            if period is None:
+                await asyncio.sleep(min(POLL_EVERY, max(end - time.monotonic(), 0.0)))
+                continue
+            await asyncio.wait_for(ws.recv(), DRAIN_TIMEOUT)
+            reads += 1
+            await asyncio.sleep(period)
+    # Read what is left, to learn how the server closed the connection (if it did).
+    ws.transport.resume_reading()
+    deadline = time.monotonic() + DRAIN_TIMEOUT
+    with contextlib.suppress(websockets.ConnectionClosed, TimeoutError):
+        while time.monotonic() < deadline:
+            await asyncio.wait_for(ws.recv(), max(deadline - time.monotonic(), 0.01))
+    tally.counts["reads"] = reads
 
 
 async def _floods(url: str, seconds: float) -> list[dict[str, Any]]:
-    texts = [hostile_texts(k) for k in range(10)]
+    texts = {kind: hostile_texts(kind) for kind in range(10)}
     connected = asyncio.Event()
     ready: list[int] = []
 
     async def one(k: int) -> dict[str, Any]:
-        async with websockets.connect(_ws(url), max_size=None, open_timeout=START_TIMEOUT,
-                                      close_timeout=5, ping_interval=None) as ws:
+        kind = KINDS[k]
+        tally = Tally(kind)
+        # The slow readers read nothing ahead (the library reads up to max_queue messages).
+        async with websockets.connect(ws_url(url), max_size=None, open_timeout=START_TIMEOUT,
+                                      close_timeout=5, ping_interval=None,
+                                      max_queue=1 if kind in (DEAF, SLOW) else 16) as ws:
+            if kind == DEAF:
+                ws.transport.pause_reading()
+            if kind == BLEND:
+                agent, reader = await _own_agent(ws, tally, k)
+                reader.cancel()
             ready.append(k)
             if len(ready) == CONNECTIONS:
                 print(READY, flush=True)
                 connected.set()
             await connected.wait()
-            return await _flood(ws, k, texts[k % 10], seconds)
+            if kind == BLEND:
+                await _flood(ws, tally, k, hostile_texts(BLEND, agent), seconds, RATE_PERIOD)
+            elif kind == CHURN:
+                await _churn(ws, tally, k, seconds)
+            elif kind in (DEAF, SLOW):
+                await _slow(ws, tally, seconds, None if kind == DEAF else SLOW_READ)
+            else:
+                await _flood(ws, tally, k, texts[kind], seconds)
+            return tally.result(ws)
 
     return list(await asyncio.gather(*(one(k) for k in range(CONNECTIONS))))
 
@@ -230,126 +343,24 @@ def run_floods(url: str, seconds: float) -> subprocess.Popen:
                             stdout=subprocess.PIPE, text=True)
 
 
-# ------------------------------------------------------------------------------ the watcher
-
-class Watcher(threading.Thread):
-    """A well-behaved client in its own thread: adds a few agents, counts frames, pings.
-
-    Attributes:
-        arrivals: ``perf_counter`` time of every frame received.
-        numbers: the frame number of every frame received.
-        pings: ``(sent, round trip)`` seconds of every pong.
-        closed: the close code, if the server closed the connection.
-    """
-
-    def __init__(self, url: str) -> None:
-        super().__init__(name="hostile-watcher", daemon=True)
-        self.url = url
-        self.arrivals: list[float] = []
-        self.numbers: list[int] = []
-        self.pings: list[tuple[float, float]] = []
-        self.closed: int | None = None
-        self.error: BaseException | None = None
-        self._halt = threading.Event()
-        self.connected = threading.Event()
-
-    def run(self) -> None:
-        try:
-            asyncio.run(self._main())
-        except BaseException as exc:  # reported by the caller
-            self.error = exc
-        finally:
-            self.connected.set()
-
-    def stop(self) -> None:
-        """End the watch and join the thread."""
-        self._halt.set()
-        self.join(60)
-
-    async def _main(self) -> None:
-        async with websockets.connect(_ws(self.url), max_size=None,
-                                      open_timeout=START_TIMEOUT) as ws:
-            for k in range(WATCHED_AGENTS):
-                await ws.send(json.dumps({"type": "add_agent", "path": "figure8",
-                                          "start": 1.3 * k}))
-            self.connected.set()
-            sent: dict[str, float] = {}
-
-            async def ping() -> None:
-                n = 0
-                while not self._halt.is_set():
-                    ref = f"p{n}"
-                    sent[ref] = time.perf_counter()
-                    await ws.send(json.dumps({"type": "ping", "t": n, "ref": ref}))
-                    n += 1
-                    await asyncio.sleep(PING_EVERY)
-
-            pinger = asyncio.create_task(ping())
-            try:
-                while not self._halt.is_set():
-                    try:
-                        message = await asyncio.wait_for(ws.recv(), 0.5)
-                    except TimeoutError:
-                        continue
-                    now = time.perf_counter()
-                    if isinstance(message, bytes):
-                        self.arrivals.append(now)
-                        self.numbers.append(int.from_bytes(message[4:8], "little"))
-                    else:
-                        reply = json.loads(message)
-                        if reply.get("type") == "pong" and reply.get("ref") in sent:
-                            t = sent.pop(reply["ref"])
-                            self.pings.append((t, now - t))
-            except websockets.ConnectionClosed as exc:
-                self.closed = exc.rcvd.code if exc.rcvd is not None else 1006
-            finally:
-                pinger.cancel()
-
-    def per_second(self, start: float, end: float) -> tuple[list[int], list[int]]:
-        """Per whole wall second from ``start`` to ``end``: the frames received, and the
-        frames the server made (the span of the frame numbers received in it)."""
-        got = [0] * int(end - start)
-        spans: list[list[int]] = [[] for _ in got]
-        for t, number in zip(self.arrivals, self.numbers, strict=True):
-            k = int(t - start)
-            if 0 <= k < len(got) and t >= start:
-                got[k] += 1
-                spans[k].append(number)
-        made = [max(n) - min(n) + 1 if n else 0 for n in spans]
-        return got, made
-
-
-#: Frames the watcher waits for before a measurement (half a second of the stream).
-SETTLE_FRAMES = 15
-
-
-def _frames_after(watcher: Watcher, count: int) -> None:
-    """Wait until the watcher has ``count`` more frames (a hang guard of START_TIMEOUT)."""
-    target = len(watcher.numbers) + count
-    deadline = time.monotonic() + START_TIMEOUT
-    while len(watcher.numbers) < target and watcher.error is None:
-        if time.monotonic() > deadline:
-            raise RuntimeError(f"the watcher got no {count} frames in {START_TIMEOUT} s")
-        time.sleep(0.01)
-
-
-def _stats(url: str) -> dict[str, Any]:
-    return httpx.get(f"{url}/api/stats", timeout=60).json()
-
-
 def campaign(seconds: float = 20.0, quiet: float = 3.0, server_args: tuple[str, ...] = ()
              ) -> dict[str, Any]:
     """Run the campaign: a quiet watch, the floods for ``seconds``, and the aftermath.
 
     Returns:
-        ``quiet_fps`` (the server's own frames per second before the flood, /api/stats),
+        ``quiet_fps`` and ``quiet_after_fps`` (the server's own frames per second just
+        before the flood and once its connections are closed, /api/stats),
         ``flood_frames`` (the server's frames made during the flood and the drain after),
         ``per_second`` (the watcher's frames in each wall second of the flood),
         ``worst_second``, ``made_per_second`` (frames the server numbered in each of those
         seconds, from the frame numbers the watcher got), ``frames_numbered`` and
         ``flood_fps`` (the server's frames over the flood, and per second), ``ping_max_s``,
         ``closed`` (the watcher's close code or ``None``), ``rss_before_mb``,
-        ``rss_after_mb``, ``floods`` (each connection's counts) and ``stats_after``.
+        ``rss_peak_mb`` (the most during the flood, polled), ``rss_after_mb``, ``floods``
+        (each connection's counts), ``stats_after``, ``slow_clients`` (the clients the
+        server closed for their backlog) and ``slow_closed_after`` (the frames the server
+        made from the flood's start until it had closed both slow readers, polled;
+        ``None``: it had not).
     """
     with server_process(*server_args) as (url, proc):
         watcher = Watcher(url)
@@ -357,22 +368,40 @@ def campaign(seconds: float = 20.0, quiet: float = 3.0, server_args: tuple[str, 
         watcher.connected.wait(START_TIMEOUT)
         if watcher.error is not None:
             raise watcher.error
-        _frames_after(watcher, SETTLE_FRAMES)
-        s0, t0 = _stats(url), time.perf_counter()
+        frames_after(watcher, SETTLE_FRAMES)
+        s0, t0 = stats(url), time.perf_counter()
         time.sleep(quiet)
-        s1, t1 = _stats(url), time.perf_counter()
+        s1, t1 = stats(url), time.perf_counter()
         rss_before = rss_mb(proc.pid)
         floods = run_floods(url, seconds)
         if floods.stdout.readline().strip() != READY:
             raise RuntimeError("the floods did not connect")
         start = time.perf_counter()
-        out, _ = floods.communicate(timeout=START_TIMEOUT + seconds + DRAIN_TIMEOUT + 60)
+        polls: list[tuple[dict[str, Any], float]] = []
+        halt = threading.Event()
+
+        def poll() -> None:
+            while not halt.wait(POLL_EVERY):
+                with contextlib.suppress(httpx.HTTPError, OSError, RuntimeError):
+                    polls.append((stats(url), rss_mb(proc.pid)))
+
+        poller = threading.Thread(target=poll, name="hostile-poll", daemon=True)
+        poller.start()
+        try:
+            out, _ = floods.communicate(timeout=START_TIMEOUT + seconds + DRAIN_TIMEOUT + 60)
+        finally:
+            halt.set()
+            poller.join(60)
         end = time.perf_counter()
-        s2 = _stats(url)
-        _frames_after(watcher, SETTLE_FRAMES)
+        s2 = stats(url)
+        frames_after(watcher, SETTLE_FRAMES)
+        s3, t3 = stats(url), time.perf_counter()
+        time.sleep(quiet)
+        s4, t4 = stats(url), time.perf_counter()
         rss_after = rss_mb(proc.pid)
         watcher.stop()
     counts = json.loads(out.strip().splitlines()[-1])
+    slow_readers = KINDS.count(DEAF) + KINDS.count(SLOW)
     flood_end = start + seconds
     bins, made = watcher.per_second(start, min(flood_end, end))
     numbers = [n for t, n in zip(watcher.arrivals, watcher.numbers, strict=True)
@@ -380,6 +409,7 @@ def campaign(seconds: float = 20.0, quiet: float = 3.0, server_args: tuple[str, 
     pings = [rtt for t, rtt in watcher.pings if start <= t < end]
     return {
         "quiet_fps": (s1["frames"] - s0["frames"]) / (t1 - t0),
+        "quiet_after_fps": (s4["frames"] - s3["frames"]) / (t4 - t3),
         "flood_frames": s2["frames"] - s1["frames"],
         "per_second": bins, "worst_second": min(bins) if bins else 0,
         "made_per_second": made,
@@ -388,7 +418,10 @@ def campaign(seconds: float = 20.0, quiet: float = 3.0, server_args: tuple[str, 
         "ping_max_s": max(pings) if pings else None,
         "closed": watcher.closed, "watch_error": repr(watcher.error) if watcher.error else None,
         "rss_before_mb": rss_before, "rss_after_mb": rss_after,
-        "floods": counts, "stats_after": s2,
+        "rss_peak_mb": max([rss_after, *(r for _, r in polls)]),
+        "floods": counts, "stats_after": s2, "slow_clients": s2.get("slow_clients", 0),
+        "slow_closed_after": next((p["frames"] - s1["frames"] for p, _ in polls
+                                   if p.get("slow_clients", 0) >= slow_readers), None),
     }
 
 

@@ -126,7 +126,7 @@ class _State:
     def __init__(self, settings: ServeSettings, engine: Engine) -> None:
         self.settings = settings
         self.engine = engine
-        self.hub = Hub(settings, 1.0 / engine.fps)
+        self.hub = Hub(settings)
         self.sim: Simulation | None = None
         self.preparer: Preparer | None = None
         self.reads = TokenBucket(settings.server_rate, int(settings.server_rate))
@@ -254,7 +254,8 @@ def _api_routes(app: FastAPI, state: _State) -> None:
     async def stats() -> dict[str, Any]:
         out = state.scene().stats()
         out.update(clients=len(state.hub.outboxes), dropped_frames=state.hub.dropped_frames,
-                   model=engine.model, backend=engine.backend)
+                   slow_clients=state.hub.slow_clients, model=engine.model,
+                   backend=engine.backend)
         return out
 
     @app.get("/api/skeleton")

@@ -8,19 +8,23 @@ simulation thread never touches an outbox: it encodes each frame once per layout
 ``call_soon_threadsafe``, where :meth:`Hub.publish` appends the same bytes object to every
 outbox of that layout and returns.
 
-A client is blamed only for its own backlog: it is marked stalled (and its session closes it
-with 1008) when its socket has accepted nothing (the session's sender waits inside one send)
-for ``stall_seconds`` counted only while frames reached the outbox on time, each within
-:data:`ON_TIME_PERIODS` frame periods of the last. Time in which the server itself fell
-behind (a slow tick, a busy event loop) never counts against a client. Replies are not
-dropped: a client holding ``max_replies`` unread replies has no more of its messages read
-(:meth:`Outbox.room`) until it reads some.
+A client that reads slowly is dropped by its unread backlog, counted in frames: the frames
+made since the newest one it has read. What it has read is known from the bytes the server
+handed to its socket and those still waiting there, unread (the transport's buffer and, on
+Linux, the kernel's send queue: :func:`unread_bytes`); a frame whose last byte left that
+queue was read. The backlog counts only while something waits unread (or a send waits for
+room in the socket): a client that has read everything sent to it is up to date, so frames
+the server itself was slow to send (a slow tick, a busy event loop) never count against it.
+Once its backlog exceeds ``max_backlog_frames`` frames it is marked stalled, and its session
+closes it with 1008. Replies are not dropped: a client holding ``max_replies`` unread replies
+has no more of its messages read (:meth:`Outbox.room`) until it reads some.
 """
 
 from __future__ import annotations
 
 import asyncio
-import time
+import contextlib
+import struct
 from collections import deque
 from collections.abc import Callable
 from typing import Any
@@ -28,9 +32,36 @@ from typing import Any
 from emotive.serve.frames import DEFAULT_ENCODING
 from emotive.serve.settings import ServeSettings
 
-#: A frame that reaches an outbox within this many frame periods of the last counts as on
-#: time; a longer gap is the server's own delay and never counts against a client.
-ON_TIME_PERIODS = 4.0
+try:  # Unix: a socket's send queue can be read with an ioctl
+    import fcntl
+    import termios
+except ImportError:  # Windows: the transport's own buffer only
+    fcntl = termios = None
+
+#: The ioctl that reads a TCP socket's unsent and unacknowledged bytes (Linux ``SIOCOUTQ``).
+SEND_QUEUE = getattr(termios, "TIOCOUTQ", None)
+
+
+def unread_bytes(transport: Any) -> int:
+    """Bytes handed to ``transport`` that its peer has not taken yet.
+
+    The transport's own buffer, and where the system tells (Linux: ``SIOCOUTQ``) the bytes in
+    the socket's send queue: not yet sent, or sent and not acknowledged. Bytes in the peer's
+    receive buffer count as taken.
+    """
+    waiting = transport.get_write_buffer_size()
+    sock = transport.get_extra_info("socket")
+    if SEND_QUEUE is None or sock is None:
+        return waiting
+    with contextlib.suppress(OSError, ValueError):
+        out = fcntl.ioctl(sock.fileno(), SEND_QUEUE, b"\0\0\0\0")
+        waiting += struct.unpack("i", out)[0]
+    return waiting
+
+
+def ws_frame_bytes(payload: int) -> int:
+    """Bytes of a websocket message of ``payload`` bytes from the server (unmasked header)."""
+    return payload + (2 if payload < 126 else 4 if payload < 65536 else 10)
 
 
 class Outbox:
@@ -40,49 +71,68 @@ class Outbox:
         client: the connection number.
         frames: frames kept at most.
         max_replies: replies kept before the client's messages stop being read.
-        stall_seconds: seconds of its own backlog (see the module docstring) before it
-            counts as stalled.
-        period: the scene's frame period, seconds.
-        clock: the time source, seconds.
+        max_backlog: frames of unread backlog (see the module docstring) before it counts
+            as stalled.
         encoding: the frame layout it gets (1 or 2).
+        unread: bytes handed to its socket that it has not taken yet (:func:`unread_bytes`);
+            ``None``: unknown (then only a send that waits for room counts).
     """
 
-    def __init__(self, client: int, frames: int, max_replies: int, stall_seconds: float,
-                 period: float = 1.0 / 30.0, clock: Callable[[], float] = time.monotonic,
-                 encoding: int = DEFAULT_ENCODING) -> None:
+    def __init__(self, client: int, frames: int, max_replies: int, max_backlog: int,
+                 encoding: int = DEFAULT_ENCODING,
+                 unread: Callable[[], int] | None = None) -> None:
         self.client = client
         self.encoding = int(encoding)
-        self.frames: deque[bytes] = deque()
+        self.frames: deque[tuple[int, bytes]] = deque()
         self.replies: deque[dict[str, Any]] = deque()
         self.max_frames = int(frames)
         self.max_replies = int(max_replies)
-        self.stall_seconds = float(stall_seconds)
-        self.on_time_gap = ON_TIME_PERIODS * float(period)
+        self.max_backlog = int(max_backlog)
+        self.unread = unread
         self.dropped = 0
+        #: Frames given to it so far (the newest one's number), and the newest it has read.
+        self.published = 0
+        self.taken = 0
+        #: Its unread backlog in frames when the last frame came.
+        self.behind = 0
         self.stalled = asyncio.Event()
         self._ready = asyncio.Event()
         self._drained = asyncio.Event()
-        self._clock = clock
         self._sending = False
-        self._blocked = 0.0
-        self._last_frame: float | None = None
+        self._current = 0
+        self._written = 0
+        #: ``(bytes written up to its end, number)`` of frames handed to the socket, unread.
+        self._inflight: deque[tuple[int, int]] = deque()
+
+    def _unread(self) -> bool:
+        """Bring :attr:`taken` up to date; whether something sent to it waits unread."""
+        unread = self.unread() if self.unread is not None else 0
+        if unread <= 0 and not self._sending:
+            # It has read everything sent to it: what waits here is the server's delay.
+            self._inflight.clear()
+            self.taken = self.published
+            return False
+        read = self._written - unread
+        while self._inflight and self._inflight[0][0] <= read:
+            self.taken = max(self.taken, self._inflight.popleft()[1])
+        return True
 
     def put_frame(self, data: bytes) -> int:
-        """Queue a frame, dropping the oldest beyond the bound; returns the frames dropped."""
-        now = self._clock()
-        if self._sending and self._last_frame is not None:
-            gap = now - self._last_frame
-            if gap <= self.on_time_gap:
-                self._blocked += gap
-                if self._blocked > self.stall_seconds:
-                    self.stalled.set()
-        self._last_frame = now
+        """Queue a frame, dropping the oldest beyond the bound; returns the frames dropped.
+
+        Marks the client stalled once its unread backlog exceeds ``max_backlog`` frames.
+        """
+        waiting = self._unread()
+        self.published += 1
+        self.behind = self.published - self.taken if waiting else 0
+        if self.behind > self.max_backlog:
+            self.stalled.set()
         dropped = 0
         if len(self.frames) >= self.max_frames:
             self.frames.popleft()
             dropped = 1
             self.dropped += 1
-        self.frames.append(data)
+        self.frames.append((self.published, data))
         self._ready.set()
         return dropped
 
@@ -101,11 +151,16 @@ class Outbox:
             self._drained.clear()
             await self._drained.wait()
 
-    def sending(self, active: bool) -> None:
-        """Mark the start (``True``) or the end of a send; an ended send clears the backlog."""
-        self._sending = active
-        if not active:
-            self._blocked = 0.0
+    def sending(self) -> None:
+        """Mark the start of a send of what :meth:`next` returned last."""
+        self._sending = True
+
+    def sent(self, payload: int) -> None:
+        """Mark the end of that send: ``payload`` bytes went to the socket."""
+        self._sending = False
+        self._written += ws_frame_bytes(payload)
+        if self._current:
+            self._inflight.append((self._written, self._current))
 
     async def next(self) -> dict[str, Any] | bytes:
         """The next thing to send: a reply if any is waiting, else the oldest kept frame."""
@@ -115,31 +170,37 @@ class Outbox:
         if self.replies:
             reply = self.replies.popleft()
             self._drained.set()
+            self._current = 0
             return reply
-        return self.frames.popleft()
+        self._current, data = self.frames.popleft()
+        return data
 
 
 class Hub:
     """Every connected client's outbox, on the event loop.
 
     Args:
-        settings: ``buffered_frames``, ``max_replies`` and ``stall_seconds``.
-        period: the scene's frame period, seconds.
+        settings: ``buffered_frames``, ``max_replies`` and ``max_backlog_frames``.
+
+    Attributes:
+        dropped_frames: frames dropped for clients that read slower than the scene.
+        slow_clients: clients closed for their unread backlog.
     """
 
-    def __init__(self, settings: ServeSettings, period: float = 1.0 / 30.0) -> None:
+    def __init__(self, settings: ServeSettings) -> None:
         self.settings = settings
-        self.period = float(period)
         self.outboxes: dict[int, Outbox] = {}
         self.dropped_frames = 0
+        self.slow_clients = 0
         self._next = 0
         self._encodings: frozenset[int] = frozenset()
 
-    def open(self, encoding: int = DEFAULT_ENCODING) -> Outbox:
-        """A new client's outbox, for frames in layout ``encoding``."""
+    def open(self, encoding: int = DEFAULT_ENCODING,
+             unread: Callable[[], int] | None = None) -> Outbox:
+        """A new client's outbox for frames in layout ``encoding`` (``unread``: see Outbox)."""
         s = self.settings
-        box = Outbox(self._next, s.buffered_frames, s.max_replies, s.stall_seconds,
-                     self.period, encoding=encoding)
+        box = Outbox(self._next, s.buffered_frames, s.max_replies, s.max_backlog_frames,
+                     encoding, unread)
         self._next += 1
         self.outboxes[box.client] = box
         self._encodings = frozenset(b.encoding for b in self.outboxes.values())

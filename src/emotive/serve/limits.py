@@ -8,7 +8,8 @@ values by a count of its commas, so that no message holds the interpreter for lo
 fraction of a frame while it is parsed (``json.loads`` is one call that other threads cannot
 interrupt). A message refused for ``NaN``, ``Infinity`` or a number beyond float range is
 read once more, leniently, to recover its ``ref`` (:func:`ref_of`). :class:`TokenBucket`
-bounds messages per second, :class:`WorkBudget` the seconds of preparation per second.
+bounds messages per second, :class:`WorkBudget` the seconds of a client's work per second
+of scene time.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from __future__ import annotations
 import json
 import math
 import re
+import threading
 import time
 from typing import Any
 
@@ -202,15 +204,19 @@ class TokenBucket:
 
 
 class WorkBudget:
-    """Seconds of preparation one client may cost per second: a bucket of thread time.
+    """Seconds of the server's work one client may cost per second of scene time.
 
-    Preparation is charged after it ran (its cost is known only then), so the bucket may go
-    below zero; while it is empty, the client's messages are refused unread.
+    A bucket of seconds: it refills at ``rate`` per second of ``clock`` (the scene's own
+    time, frame number / fps, in the server, so that a scene slowed by a busy machine gives
+    each client less work in the same wall second, never more of the scene's time) up to
+    ``burst``. Work is charged after it ran (its cost is known only then: preparation off the
+    scene's thread, commands and joins on it), so the bucket may go below zero; while it is,
+    the client's messages are refused and its commands wait. Any thread may charge or ask.
 
     Args:
-        rate: seconds of preparation per second.
+        rate: seconds of work per second of ``clock``.
         burst: the most seconds it may hold (and its content at the start).
-        clock: the time source, seconds (monotonic).
+        clock: the time source, seconds (e.g. the scene's time).
     """
 
     def __init__(self, rate: float, burst: float, clock: Any = time.monotonic) -> None:
@@ -219,18 +225,25 @@ class WorkBudget:
         self._clock = clock
         self._left = float(burst)
         self._last = clock()
+        self._lock = threading.Lock()
 
     def _refill(self) -> None:
         now = self._clock()
         self._left = min(self.burst, self._left + (now - self._last) * self.rate)
         self._last = now
 
-    def allowed(self) -> bool:
-        """Whether the client may have another message prepared now."""
-        self._refill()
-        return self._left > 0.0
+    def allowed(self, seconds: float = 0.0) -> bool:
+        """Whether more work may be done now.
+
+        The bucket must hold more than zero, and ``seconds`` at least (for work expected to
+        cost that much).
+        """
+        with self._lock:
+            self._refill()
+            return self._left > 0.0 and self._left >= seconds
 
     def charge(self, seconds: float) -> None:
-        """Take the cost of one message's preparation, seconds."""
-        self._refill()
-        self._left -= max(float(seconds), 0.0)
+        """Take the cost of some work, seconds."""
+        with self._lock:
+            self._refill()
+            self._left -= max(float(seconds), 0.0)

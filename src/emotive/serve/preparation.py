@@ -6,17 +6,29 @@ takes milliseconds; on the event loop it would hold up every client's frames, on
 simulation thread the scene's clock. Here each client has a :class:`Lane`: a queue of at most
 ``queued_messages`` messages and ``queued_megabytes`` MB (its session reads no more of the
 client's messages while the lane is full, so a flood waits in the client's own socket) and a
-:class:`~emotive.serve.limits.WorkBudget` of ``work_per_second`` seconds of preparation per
-second. One :class:`Preparer` task on the event loop takes one message from each non-empty
-lane in turn and prepares it in one worker thread; the simulation thread receives only
-finished :class:`~emotive.serve.messages.Command` objects.
+:class:`~emotive.serve.limits.WorkBudget` of ``work_per_second`` seconds of the server's work
+per second of *scene* time (frame number / fps): its messages' preparation (thread time) and
+what its commands then cost the simulation thread (:mod:`~emotive.serve.commands`: a share of
+each batch of new agents it joins, each other command's time), so that a client's share of
+the scene's time stays the same when a busy machine slows the scene. While the budget is
+overdrawn the client's messages are refused (an ``error`` reply) and its commands already
+prepared wait; nobody else's do. One :class:`Preparer` task on the event loop takes one
+message from each non-empty lane in turn and prepares it in one worker thread; the
+simulation thread receives only finished :class:`~emotive.serve.messages.Command` objects.
 
-The worker shares the interpreter with the simulation thread, so the preparer keeps it busy
-for at most :data:`DUTY` of wall time (thread time measured per message, then a pause), and
-no single step of a message is long: every message is small enough by its limits (size,
-values, points, keyframes) to be prepared within a frame. ``add_agent`` beyond a client's
-``max_agents_per_client`` (those it has in the scene and those on their way) is refused
-before its path is built.
+The worker shares the interpreter with the simulation thread, and preparing holds the
+interpreter lock: a 256-keyframe schedule takes 30 ms of it, during which every tensor
+operation of a tick that gives the lock up waits to take it back. So the worker prepares a
+message expected to take more than :data:`GATE_MIN` while the simulation thread waits for
+its next frame's due time: when that wait has the time the client's messages took lately
+left, else from the start of the next wait
+(:meth:`~emotive.serve.simulation.Simulation.wait_spare`; a message waits :data:`PATIENCE`
+frame periods at most, for a scene that is late, with no waits), and it works at most
+:data:`DUTY` of wall time (thread time measured per message, then a pause). No single step
+of a message is long: every message is small enough by its limits (size, values, points,
+keyframes) to be prepared within a frame.
+``add_agent`` beyond a client's ``max_agents_per_client`` (those it has in the scene and those
+on their way) is refused before its path is built.
 """
 
 from __future__ import annotations
@@ -48,6 +60,13 @@ MIN_PAUSE = 0.005
 QUANTUM = 0.005
 #: Most messages one lane gives per turn.
 ROUND_ITEMS = 8
+#: Frame periods a message waits at most for the simulation thread to wait for a due time.
+PATIENCE = 4
+#: Seconds a lane's messages are expected to take from which they wait for spare time
+#: (a shorter one hardly lengthens a tick it runs beside).
+GATE_MIN = 0.002
+#: Weight of a message's cost in its lane's expected cost, when lower (higher: taken at once).
+EXPECT_WEIGHT = 0.2
 
 
 #: Bytes of messages prepared after which the worker, once every lane is empty, hands the
@@ -66,6 +85,13 @@ def _malloc_trim() -> Callable[[int], int] | None:
         return ctypes.CDLL(None).malloc_trim
     except (OSError, AttributeError):
         return None
+
+
+def work_refusal(settings: ServeSettings) -> str:
+    """The ``error`` reply's text for a message refused while its client's budget is overdrawn."""
+    return (f"too much work: your messages may cost {1000 * settings.work_per_second:g} ms of "
+            "the server's time per second of scene time, and the last ones cost more; this one "
+            "was not applied: send fewer or smaller messages, or wait a moment")
 
 
 def error_reply(message: str, ref: Any = NO_REF) -> dict[str, Any]:
@@ -106,6 +132,8 @@ class Lane:
         adding: its ``add_agent`` commands prepared and not yet answered.
         share: its share of preparation time, seconds (see :meth:`Preparer._round`).
         mean_cost: the mean cost of its messages so far, seconds of thread time.
+        expected: what its next message is expected to cost, seconds: its costs lately,
+            a higher one taken at once (the spare time the worker waits for).
     """
 
     client: int
@@ -116,6 +144,7 @@ class Lane:
     adding: int = 0
     share: float = 0.0
     mean_cost: float = 0.001
+    expected: float = 0.001
     _room: asyncio.Event = field(default_factory=asyncio.Event)
 
 
@@ -139,6 +168,7 @@ class Preparer:
         self._task: asyncio.Task | None = None
         self._trim = _malloc_trim()
         self._untrimmed = 0
+        self._turn = 0
 
     # --------------------------------------------------------------------- event loop side
 
@@ -156,7 +186,8 @@ class Preparer:
     def open(self, box: Outbox) -> Lane:
         """A new client's lane."""
         s = self.settings
-        lane = Lane(box.client, box, WorkBudget(s.work_per_second, s.work_burst))
+        lane = Lane(box.client, box, WorkBudget(s.work_per_second, s.work_burst,
+                                                self.sim.scene_time))
         self._lanes[box.client] = lane
         return lane
 
@@ -182,28 +213,40 @@ class Preparer:
         self._work.set()
 
     def _round(self) -> list[tuple[Lane, dict[str, Any] | str]]:
-        """One turn of every lane with messages: each takes what its share of time allows.
+        """One turn of the lanes with messages: each takes what its share of time allows.
 
-        Deficit round robin on preparation time: every turn adds :data:`QUANTUM` seconds to
-        a lane's share (up to :data:`ROUND_ITEMS` quanta); a lane gives messages while its
-        share, less the expected cost of each (its mean so far), stays positive, and at most
+        A lane whose budget is overdrawn has its messages refused. Deficit round robin on
+        preparation time for the others: every turn adds :data:`QUANTUM` seconds to a lane's
+        share (up to :data:`ROUND_ITEMS` quanta); a lane gives messages while its share, less
+        the expected cost of each (its mean so far), stays positive, and at most
         :data:`ROUND_ITEMS`. So a client of cheap messages is not held up by one of costly
-        messages, which waits turns until its share pays for one.
+        messages, which waits turns until its share pays for one. A turn ends once its
+        messages are expected to take a frame period (the lanes take turns to go first), so
+        that refusals and the others' messages do not wait behind a long batch.
         """
+        lanes = [lane for lane in self._lanes.values() if lane.items]
+        for lane in lanes:
+            while lane.items and not lane.budget.allowed():
+                message, size = lane.items.popleft()
+                lane.size -= size
+                lane._room.set()
+                self._refuse_work(lane, message)
+        if lanes:
+            self._turn = (self._turn + 1) % len(lanes)
+            lanes = lanes[self._turn:] + lanes[:self._turn]
         batch: list[tuple[Lane, dict[str, Any] | str]] = []
-        for lane in list(self._lanes.values()):
-            if not lane.items:
-                continue
+        expected = 0.0
+        for lane in lanes:
+            if expected >= 1.0 / self.sim.fps:
+                break
             lane.share = min(lane.share + QUANTUM, QUANTUM * ROUND_ITEMS)
             taken = 0
             while lane.items and lane.share > 0.0 and taken < ROUND_ITEMS:
                 message, size = lane.items.popleft()
                 lane.size -= size
                 lane._room.set()
-                if not lane.budget.allowed():
-                    self._refuse_work(lane, message)
-                    continue
                 lane.share -= lane.mean_cost
+                expected += lane.expected
                 batch.append((lane, message))
                 taken += 1
         return batch
@@ -211,10 +254,7 @@ class Preparer:
     def _refuse_work(self, lane: Lane, message: dict[str, Any] | str) -> None:
         s = self.settings
         ref = message.get("ref", NO_REF) if isinstance(message, dict) else head_ref(message)
-        lane.box.put_reply(error_reply(
-            f"too much work: your messages may take {1000 * s.work_per_second:g} ms of the "
-            "server's preparation per second, and the last ones took more; this one was not "
-            "applied: send fewer or smaller messages", ref))
+        lane.box.put_reply(error_reply(work_refusal(s), ref))
 
     async def _run(self) -> None:
         loop = asyncio.get_running_loop()
@@ -242,6 +282,7 @@ class Preparer:
                 spent += cost
                 lane.share += lane.mean_cost - cost
                 lane.mean_cost += 0.2 * (cost - lane.mean_cost)
+                lane.expected = max(cost, lane.expected + EXPECT_WEIGHT * (cost - lane.expected))
                 lane.budget.charge(cost)
                 self._answer(lane, result, ref)
             owed += spent * (1.0 / DUTY - 1.0)
@@ -257,7 +298,7 @@ class Preparer:
             lane.box.put_reply(with_ref(result, ref))
             return
         adding = result.kind == "add_agent"
-        future = self.sim.submit(result, lane.client)
+        future = self.sim.submit(result, lane.client, lane.budget)
         if adding:
             lane.adding += 1
 
@@ -280,7 +321,12 @@ class Preparer:
 
     def _prepare(self, lane: Lane, message: dict[str, Any] | str
                  ) -> tuple[Any, Any, float]:
-        """``(command or exception, ref, thread seconds)`` of one message (worker thread)."""
+        """``(command or exception, ref, thread seconds)`` of one message (worker thread).
+
+        Waits first for time the simulation thread has to spare (see the module docstring).
+        """
+        if lane.expected >= GATE_MIN:
+            self.sim.wait_spare(lane.expected, PATIENCE / self.sim.fps)
         start = self._clock()
         s = self.settings
         ref = NO_REF

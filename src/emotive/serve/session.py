@@ -10,10 +10,13 @@ it in its worker thread and hands the command to the simulation thread, whose re
 in the client's :class:`~emotive.serve.hub.Outbox` when it comes. The sender drains the
 outbox (replies first, then the newest frames). The receiver never waits for a reply, but it
 reads no more of the client's messages while the client's lane is full or its unread replies
-reach ``max_replies``: a flood then waits in the client's own socket. Any exception while
-handling one message becomes that message's ``error`` reply, with the message's ``ref``
-whenever it could be read; the connection ends when the client leaves, or when its own
-backlog stalls it (:mod:`~emotive.serve.hub`), with close code 1008.
+reach ``max_replies``: a flood then waits in the client's own socket. While the client's work
+budget (seconds of the server's work per second of scene time) is overdrawn, every message
+but ``ping`` is refused as it is read. Any exception while handling one message becomes that
+message's ``error`` reply, with the message's ``ref`` whenever it could be read; the
+connection ends when the client leaves, or when its unread backlog stalls it
+(:mod:`~emotive.serve.hub`): then with close code 1008, and the connection is cut
+:data:`CLOSE_TIMEOUT` later (a client that reads nothing would not take the close).
 """
 
 from __future__ import annotations
@@ -26,10 +29,11 @@ from starlette.websockets import WebSocket, WebSocketDisconnect
 
 from emotive.serve.errors import NO_REF, MessageError
 from emotive.serve.frames import DEFAULT_ENCODING
-from emotive.serve.hub import Hub, Outbox
+from emotive.serve.hub import Hub, Outbox, unread_bytes
 from emotive.serve.limits import TokenBucket, check_size, head_ref, parse_message, ref_of
 from emotive.serve.messages import Command
-from emotive.serve.preparation import Preparer, error_reply, pong, with_ref
+from emotive.serve.preparation import Preparer, error_reply, pong, with_ref, work_refusal
+from emotive.serve.server import TRANSPORT_EXTENSION
 from emotive.serve.settings import ServeSettings
 from emotive.serve.simulation import Simulation, error_text
 
@@ -38,6 +42,8 @@ STALLED_CLOSE = 1008
 #: Messages of at most this many bytes are parsed on the event loop (microseconds each);
 #: the ``ref`` of a refused message is read only up to this size.
 SMALL_MESSAGE = 4096
+#: Seconds the close of a stalled client may take before its connection is cut.
+CLOSE_TIMEOUT = 1.0
 
 
 class Session:
@@ -65,7 +71,10 @@ class Session:
         self.bucket = TokenBucket(settings.rate, settings.burst)
         self.refusals = TokenBucket(settings.rate, max(1, settings.burst // 4))
         self.reads = reads or TokenBucket(settings.server_rate, int(settings.server_rate))
-        self.box: Outbox = hub.open(encoding)
+        self.transport = ws.scope.get("extensions", {}).get(TRANSPORT_EXTENSION)
+        transport = self.transport
+        self.box: Outbox = hub.open(
+            encoding, None if transport is None else lambda: unread_bytes(transport))
         self.lane = preparer.open(self.box)
 
     async def run(self) -> None:
@@ -82,22 +91,27 @@ class Session:
             self.preparer.close(self.lane)
             self.sim.submit(Command("client_left"), self.box.client)
         if self.box.stalled.is_set():
+            self.hub.slow_clients += 1
             with contextlib.suppress(Exception):
                 await asyncio.wait_for(self.ws.close(STALLED_CLOSE, "client stopped reading"),
-                                       1.0)
+                                       CLOSE_TIMEOUT)
+            if self.transport is not None:
+                # A client that reads nothing never takes the close either (and the socket
+                # would stay open while data waits for it): cut the connection soon after.
+                asyncio.get_running_loop().call_later(CLOSE_TIMEOUT, self.transport.abort)
 
     async def _send(self) -> None:
         with contextlib.suppress(WebSocketDisconnect, RuntimeError, OSError):
             while True:
                 item = await self.box.next()
-                self.box.sending(True)
-                try:
-                    if isinstance(item, bytes):
-                        await self.ws.send_bytes(item)
-                    else:
-                        await self.ws.send_text(json.dumps(item))
-                finally:
-                    self.box.sending(False)
+                self.box.sending()
+                if isinstance(item, bytes):
+                    await self.ws.send_bytes(item)
+                    self.box.sent(len(item))
+                else:
+                    text = json.dumps(item)  # ASCII: one byte a character
+                    await self.ws.send_text(text)
+                    self.box.sent(len(text))
 
     async def _receive(self) -> None:
         while True:
@@ -138,6 +152,8 @@ class Session:
         try:
             size = check_size(text, s.max_message_bytes)
             if size > SMALL_MESSAGE:
+                if not self.lane.budget.allowed():
+                    raise MessageError(work_refusal(s), head_ref(text))
                 await self.preparer.put(self.lane, text, size)
                 return
             message = parse_message(text, s.max_message_bytes, s.max_depth, s.max_values)
@@ -145,6 +161,8 @@ class Session:
             if message["type"] == "ping":
                 self.box.put_reply(with_ref(pong(message), ref))
                 return
+            if not self.lane.budget.allowed():
+                raise MessageError(work_refusal(s))
             if message["type"] == "add_agent":
                 self.preparer.check_quota(self.lane)
         except MessageError as exc:

@@ -87,15 +87,18 @@ class ServeSettings:
         burst: control messages a client may send at once (the token bucket's size).
         server_rate: control messages per second the server reads from all its clients
             together (a client over it waits its turn; bursts of one second).
-        work_per_second: seconds of preparation (parsing, checking, building paths and
-            schedules, thread time) a client's messages may cost per second, sustained.
-        work_burst: seconds of preparation a client may use at once.
+        work_per_second: seconds of the server's work a client's messages may cost per second
+            of scene time (frame number / fps), sustained: their preparation (parsing,
+            checking, building paths and schedules; thread time) and their commands' time
+            on the simulation thread (a share of each batch of new agents they join).
+        work_burst: seconds of that work a client may use at once.
         queued_messages: a client's messages waiting for preparation at most; the server
             reads no more of its messages until one is prepared.
         queued_megabytes: those messages' size at most, MB.
         buffered_frames: newest frames kept for a client that reads slowly; older are dropped.
-        stall_seconds: a client whose socket accepted nothing for this long while frames
-            came on time is disconnected (close code 1008).
+        max_backlog_frames: a client with more unread frames than this (frames made since
+            the newest one it has read, while data sent to it waits unread) is disconnected
+            (close code 1008).
         max_replies: replies waiting for a client at most; the server reads no more of its
             messages until it has read some.
         recording_seconds: longest recording, seconds of scene time.
@@ -125,7 +128,7 @@ class ServeSettings:
     queued_messages: int = 32
     queued_megabytes: float = 1.0
     buffered_frames: int = 2
-    stall_seconds: float = 10.0
+    max_backlog_frames: int = 60
     max_replies: int = 1000
     recording_seconds: float = 600.0
     recording_megabytes: float = 256.0
@@ -175,7 +178,7 @@ class ServeSettings:
         for name in ("max_agents", "max_agents_per_client", "max_message_bytes", "max_depth",
                      "max_values", "rate", "burst", "server_rate", "work_per_second", "work_burst",
                      "queued_messages", "queued_megabytes", "buffered_frames",
-                     "stall_seconds", "max_replies", "recording_seconds",
+                     "max_backlog_frames", "max_replies", "recording_seconds",
                      "recording_megabytes", "kept_recordings"):
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):

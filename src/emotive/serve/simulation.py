@@ -4,16 +4,18 @@ Tick ``k`` is due at ``t0 + k / fps``; its frame is made as soon as the frame be
 handed out, and handed out when due, so that a tick that takes longer than a period now and
 then uses the time the others left. For each frame the thread applies the commands that
 arrived since the last one, all prepared off this thread
-(:mod:`~emotive.serve.preparation`); new agents join in one batched call (so a hundred new
-agents cost one warm-up of the network) of at most :data:`JOIN_PER_TICK`, the others (and
-the later commands of their clients, which stay in order) at the next ticks. It then steps
-the engine (its own, or the step worker processes of
+(:mod:`~emotive.serve.preparation`), in fair turns and within a share of the frame, and
+joins new agents in the time the tick has to spare (:mod:`~emotive.serve.commands`). It then
+steps the engine (its own, or the step worker processes of
 :class:`~emotive.serve.workers.ShardedEngine`), encodes the frame once in each layout some
 client asked for (:func:`~emotive.serve.frames.encode_frame`), hands the bytes to the
 :class:`Sink` (which fans them out to the clients without waiting for any) and feeds the
 running recordings. A frame handed out after the next tick was due counts as late; when the
 thread falls more than a frame behind it skips the missed ticks instead of bursting to catch
-up, so scene time (frame number / fps) then runs behind wall time.
+up, so scene time (frame number / fps, :meth:`Simulation.scene_time`) then runs behind wall
+time. While it waits for a frame's due time, other threads may use the interpreter: the
+preparer of control messages waits for those moments (:meth:`Simulation.wait_spare`), so
+that its work, which holds the interpreter lock, does not lengthen a tick.
 
 Control messages reach the thread through a thread-safe queue (:meth:`Simulation.submit`)
 and are answered through :class:`concurrent.futures.Future` objects; the engine is never
@@ -31,7 +33,6 @@ Legend: ``B`` agents, ``J`` joints, ``C`` emotion labels.
 
 from __future__ import annotations
 
-import contextlib
 import gc
 import logging
 import math
@@ -41,36 +42,43 @@ import time
 from collections import deque
 from collections.abc import Callable
 from concurrent.futures import Future
-from dataclasses import dataclass
 from typing import Any, Protocol
 
 import numpy as np
 
-from emotive.data.emotion import EmotionSchedule
 from emotive.errors import EmotiveError
 from emotive.models.gait.generate import GaitFrame
-from emotive.paths import GroundPath
 from emotive.serve.capacity import StepCosts
+from emotive.serve.commands import (
+    JOIN_BURST,
+    JOIN_PER_TICK,
+    JOIN_SHARE,
+    NO_VA,
+    SceneAgent,
+    SceneCommands,
+)
 from emotive.serve.engines import Engine
 from emotive.serve.errors import MessageError
 from emotive.serve.frames import Frame, encode_frame
-from emotive.serve.messages import AddAgent, Command
+from emotive.serve.limits import WorkBudget
+from emotive.serve.messages import Command
 from emotive.serve.recording import Recorder
 from emotive.serve.settings import ServeSettings
+from emotive.serve.turns import JoinCosts, Pending, Turns
 
 log = logging.getLogger("emotive.serve")
 
+__all__ = ["JOIN_PER_TICK", "STEP_BUDGET", "Simulation", "Sink", "error_text"]
+
 #: Steps whose times give the p50/p99 of ``/api/stats``.
 STEP_WINDOW = 300
-#: Most points of a path reported in an agent's state.
-STATE_PATH_POINTS = 200
-#: Most agents joining at one tick (100 joining took 15 ms on a 2-core machine).
-JOIN_PER_TICK = 32
 #: Share of the frame period the engine's step may take with every agent the scene admits,
 #: unless ``--step-budget`` says otherwise.
 STEP_BUDGET = ServeSettings.step_budget
-#: Valence and arousal of an agent the scene no longer knows.
-_NO_VA = (0.0, 0.0)
+#: Weight of a new tick in the estimate of a tick's own time (step and encoding).
+TICK_WEIGHT = 0.1
+#: Seconds a thread waiting in :meth:`Simulation.wait_spare` checks again at the latest.
+SPARE_POLL = 0.1
 
 
 class Sink(Protocol):
@@ -86,33 +94,7 @@ class Sink(Protocol):
         """A message for one client (e.g. its recording reached its limit); ``None``: all."""
 
 
-@dataclass
-class _Agent:
-    """What the server knows of an agent beside the engine."""
-
-    path: GroundPath
-    schedule: EmotionSchedule
-    since: float
-    pace: float
-    owner: int = -1
-    #: Its valence and arousal when its schedule holds one emotion, else ``None``.
-    constant_va: tuple[float, float] | None = None
-
-    def __post_init__(self) -> None:
-        self.set_schedule(self.schedule, self.since)
-
-    def set_schedule(self, schedule: EmotionSchedule, since: float) -> None:
-        """A new emotion schedule, its time 0 at scene time ``since``."""
-        self.schedule, self.since = schedule, since
-        if schedule is None:  # no emotion known (a stand-in in tests): neutral
-            self.constant_va = _NO_VA
-            return
-        pts = schedule.points
-        self.constant_va = ((float(pts[0, 0]), float(pts[0, 1])) if len(schedule.times) == 1
-                            else None)
-
-
-class Simulation:
+class Simulation(SceneCommands):
     """The scene's thread: engine, clock, commands, stats and recordings.
 
     Args:
@@ -131,30 +113,40 @@ class Simulation:
         self.settings = settings
         self.sink = sink
         self.fps = engine.fps
+        self.frames = 0
         self._clock = clock
         self._cpu = cpu_clock
-        self._queue: queue.SimpleQueue[tuple[Command, int, Future]] = queue.SimpleQueue()
+        self._queue: queue.SimpleQueue[tuple[Command, int, Future, WorkBudget | None]] = (
+            queue.SimpleQueue())
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
-        self._agents: dict[int, _Agent] = {}
+        self._agents: dict[int, SceneAgent] = {}
         self._last = engine.step()
         self._va = np.zeros((0, 2))
         #: Counts changes of the agents' emotions (the valence/arousal rows are kept until).
         self._emotions = 0
         self._va_key: tuple | None = None
         self._va_base = np.zeros((0, 2))
-        self._va_moving: list[tuple[int, _Agent]] = []
+        self._va_moving: list[tuple[int, SceneAgent]] = []
         self.recorder = Recorder(settings.recording_seconds * self.fps,
                                  settings.recording_megabytes * 1e6, settings.kept_recordings)
         self._lock = threading.Lock()
         self._steps: deque[float] = deque(maxlen=STEP_WINDOW)
-        self._pending: deque[tuple[Command, int, Future]] = deque()
+        self._turns = Turns()
+        self._join_costs = JoinCosts()
+        self._join_budget = WorkBudget(JOIN_SHARE, JOIN_BURST, self.scene_time)
+        #: What a tick's own step and encoding took lately, seconds (upward at once).
+        self._tick_guess = 0.5 / self.fps
+        #: Clock time the thread's present wait for a due time ends (0: it is ticking), and
+        #: the waits so far.
+        self._idle = threading.Condition()
+        self._idle_until = 0.0
+        self._idles = 0
         self._owned: dict[int, int] = {}
         self._costs: dict[int, StepCosts] = {}
         self._capacity = settings.max_agents
         self._done: deque[float] = deque()
         self._phases: deque[tuple[float, float, float, float]] = deque(maxlen=STEP_WINDOW)
-        self.frames = 0
         self.late_frames = 0
         self.lost_agents = 0
 
@@ -169,26 +161,70 @@ class Simulation:
     def stop(self, timeout: float = 5.0) -> None:
         """Stop the thread and wait for it; pending commands fail."""
         self._stop.set()
+        with self._idle:
+            self._idle.notify_all()
         if self._thread is not None:
             self._thread.join(timeout)
         while True:
             try:
-                self._pending.append(self._queue.get_nowait())
+                self._turns.put(Pending(*self._queue.get_nowait()))
             except queue.Empty:
                 break
-        for _, _, future in self._pending:
-            if not future.done():
-                future.set_exception(MessageError("the server is shutting down"))
-        self._pending.clear()
+        for item in self._turns:
+            if not item.future.done():
+                item.future.set_exception(MessageError("the server is shutting down"))
+        self._turns.clear()
 
-    def submit(self, command: Command, client: int = -1) -> Future:
-        """Queue a command for the next tick; its future gets the reply message."""
+    def submit(self, command: Command, client: int = -1,
+               budget: WorkBudget | None = None) -> Future:
+        """Queue a command for the next tick; its future gets the reply message.
+
+        Args:
+            command: the prepared command.
+            client: the connection it came from (-1: the HTTP API or the server).
+            budget: the client's work budget: charged what the command costs this thread,
+                and while it is overdrawn the client's commands wait (``None``: neither).
+        """
         future: Future = Future()
         if self._stop.is_set():
             future.set_exception(MessageError("the server is shutting down"))
         else:
-            self._queue.put((command, client, future))
+            self._queue.put((command, client, future, budget))
         return future
+
+    def scene_time(self) -> float:
+        """Seconds of scene time so far: frames made / fps (any thread)."""
+        return self.frames / self.fps
+
+    def wait_spare(self, seconds: float, patience: float) -> None:
+        """Block until the simulation thread waits for a frame's due time (another thread).
+
+        For a thread whose work holds the interpreter lock (the preparer): done while the
+        simulation thread waits, it does not lengthen a tick. Returns when a wait with
+        ``seconds`` left is under way, else when the next wait begins (the most time there
+        is), or after ``patience`` seconds without one (a busy machine, late ticks), or once
+        the simulation thread stops.
+        """
+        deadline = self._clock() + patience
+        with self._idle:
+            first = self._idles
+            while not self._stop.is_set():
+                now = self._clock()
+                left = self._idle_until - now if self._idle_until else -1.0
+                if left >= seconds or (left > 0.0 and self._idles != first) or now >= deadline:
+                    return
+                self._idle.wait(max(min(SPARE_POLL, deadline - now), 0.001))
+
+    def _wait_due(self, now: float, seconds: float) -> bool:
+        """Wait ``seconds`` for a frame's due time (others may work); ``True``: stopped."""
+        with self._idle:
+            self._idle_until = now + seconds
+            self._idles += 1
+            self._idle.notify_all()
+        stopped = self._stop.wait(seconds)
+        with self._idle:
+            self._idle_until = 0.0
+        return stopped
 
     def _run(self) -> None:
         # The model, the rig and the app are loaded: keep them out of the cyclic collector's
@@ -202,15 +238,19 @@ class Simulation:
             # that takes longer than a period now and then uses the time the others left.
             start = self._clock()
             data: dict[int, bytes] | None = None
+            ticked = start
             try:
-                self._apply_pending()
-                data = self._tick(self._clock() - start)
+                self._apply_pending(t0 + k * period)
+                ticked = self._clock()
+                data = self._tick(ticked - start)
             except Exception:
                 # Nothing may end the stream: log it and go on with the next tick.
                 log.exception("simulation tick failed")
             made = self._clock()
+            own = made - ticked
+            self._tick_guess = max(own, self._tick_guess + TICK_WEIGHT * (own - self._tick_guess))
             wait = t0 + k * period - made
-            if wait > 0 and self._stop.wait(wait):
+            if wait > 0 and self._wait_due(made, wait):
                 break
             if data:
                 self.sink.frame(data)
@@ -318,7 +358,7 @@ class Simulation:
         if key != self._va_key:
             infos = [self._agents.get(agent) for agent in frame.agents]
             fixed = [None if info is None else info.constant_va for info in infos]
-            self._va_base = np.array([_NO_VA if f is None else f for f in fixed],
+            self._va_base = np.array([NO_VA if f is None else f for f in fixed],
                                      dtype=np.float64).reshape(-1, 2)
             self._va_moving = [(k, info) for k, info in enumerate(infos)
                                if info is not None and fixed[k] is None]
@@ -330,190 +370,6 @@ class Simulation:
             va[k] = (np.interp(t, times, pts[:, 0]), np.interp(t, times, pts[:, 1]))
         self._va = va
         return va
-
-    # ----------------------------------------------------------------------------- commands
-
-    def owned(self, client: int) -> int:
-        """Agents client ``client`` has in the scene (any thread: a read of one number)."""
-        return self._owned.get(client, 0)
-
-    def capacity(self) -> int:
-        """Agents the scene admits now: ``max_agents``, or fewer by the measured step time."""
-        return self._capacity
-
-    def _measured(self, agents: int, seconds: float, shard: int = 0) -> None:
-        """Take one step's time (of the engine stepping part ``shard``) into the limit."""
-        costs = self._costs.get(shard)
-        if costs is None:
-            costs = self._costs[shard] = StepCosts(self.settings.step_budget / self.fps,
-                                                   self.settings.max_agents)
-        costs.measured(agents, seconds)
-        self._update_capacity()
-
-    def _update_capacity(self) -> None:
-        limits = sum(c.limit for c in self._costs.values())
-        self._capacity = min(self.settings.max_agents, limits) if self._costs else (
-            self.settings.max_agents)
-
-    def _apply_pending(self) -> None:
-        while True:
-            try:
-                self._pending.append(self._queue.get_nowait())
-            except queue.Empty:
-                break
-        batch: list[tuple[Command, int, Future]] = []
-        joined = 0
-        waiting: set[int] = set()
-        later: deque[tuple[Command, int, Future]] = deque()
-        for item in self._pending:
-            command, client, _ = item
-            if client in waiting:
-                later.append(item)
-            elif command.kind == "add_agent":
-                if joined < JOIN_PER_TICK:
-                    batch.append(item)
-                    joined += 1
-                else:
-                    waiting.add(client)
-                    later.append(item)
-            else:
-                self._add(batch)
-                batch = []
-                self._apply(*item)
-        self._add(batch)
-        self._pending = later
-        self._check_lost()
-
-    def _apply(self, command: Command, client: int, future: Future) -> None:
-        try:
-            reply = self._reply(command, client)
-        except Exception as exc:  # every failure becomes this message's error reply
-            future.set_exception(exc)
-        else:
-            future.set_result(reply)
-        self._check_lost()
-
-    def _refusal(self, client: int, taken: dict[int, int], count: int) -> MessageError | None:
-        """Why one more agent of ``client`` may not join a scene of ``count``, or ``None``."""
-        s = self.settings
-        if client >= 0 and self.owned(client) + taken.get(client, 0) >= s.max_agents_per_client:
-            return MessageError(
-                f"you have {self.owned(client)} agents in the scene, the limit per client "
-                f"(--max-agents-per-client {s.max_agents_per_client}): remove some first")
-        if count < self._capacity:
-            return None
-        if self._capacity >= s.max_agents:
-            return MessageError(f"the scene holds {count} agents, the server's limit "
-                                f"(--max-agents {s.max_agents}): remove agents first")
-        return MessageError(
-            f"the scene holds {count} agents, the most this machine steps within "
-            f"{100 * s.step_budget:.0f} % of a {1000 / self.fps:.1f} ms frame by its measured "
-            f"step time (limit now {self._capacity}, below --max-agents {s.max_agents}): "
-            "remove agents first, or try again when the machine is less busy")
-
-    def _add(self, batch: list[tuple[Command, int, Future]]) -> None:
-        """Add a run of ``add_agent`` commands, batched, within the quotas and the capacity."""
-        taken: dict[int, int] = {}
-        admitted = []
-        for item in batch:
-            refusal = self._refusal(item[1], taken, len(self.engine) + len(admitted))
-            if refusal is not None:
-                item[2].set_exception(refusal)
-                continue
-            taken[item[1]] = taken.get(item[1], 0) + 1
-            admitted.append(item)
-        batch = admitted
-        if not batch:
-            return
-        specs: list[AddAgent] = [c.value for c, _, _ in batch]
-        try:
-            ids = self.engine.add_agents([s.path for s in specs], [s.schedule for s in specs],
-                                         [s.start for s in specs], [s.pace for s in specs])
-        except Exception as exc:  # every failure becomes this message's error reply
-            if len(batch) == 1:
-                batch[0][2].set_exception(exc)
-                return
-            # One bad entry spoils a batch: add one at a time, each with its own reply.
-            for item in batch:
-                self._add([item])
-            return
-        now = self.frames / self.fps
-        for agent, spec, (_, client, future) in zip(ids, specs, batch, strict=True):
-            self._emotions += 1
-            self._agents[agent] = _Agent(spec.path, spec.schedule, now, spec.pace, client)
-            self._owned[client] = self._owned.get(client, 0) + 1
-            future.set_result({"type": "agent", "id": agent})
-
-    def _known(self, agent: int | None) -> int:
-        if agent not in self._agents:
-            raise MessageError(f"no agent with id {agent}: it was never added or was removed "
-                               '(send {"type": "state"} for the live ones)')
-        return int(agent)
-
-    def _reply(self, command: Command, client: int) -> dict[str, Any]:
-        kind, value = command.kind, command.value
-        if kind == "state":
-            return {"type": "state", "agents": self.agent_states()}
-        if kind == "start_recording":
-            rec = self.recorder.start(client)
-            return {"type": "recording", "id": rec.rid, "state": "started"}
-        if kind == "client_left":
-            self.recorder.release(client)
-            return {"type": "ok"}
-        if kind == "stop_recording":
-            rec = self.recorder.stop(client, value)
-            return {"type": "recording", "id": rec.rid, "state": "stopped",
-                    "frames": rec.frames, "agents": rec.agents}
-        agent = self._known(command.agent)
-        info = self._agents[agent]
-        if kind == "remove_agent":
-            self.engine.remove_agent(agent)
-            del self._agents[agent]
-            self._emotions += 1
-            self._owned[info.owner] = self._owned.get(info.owner, 1) - 1
-        elif kind == "set_emotion":
-            self.engine.set_emotion(agent, value)
-            info.set_schedule(value, self.frames / self.fps)
-            self._emotions += 1
-        elif kind == "set_path":
-            self.engine.set_path(agent, value)
-            info.path = value
-        elif kind == "set_target":
-            path = self.engine.set_target(agent, value)
-            if path is not None:  # step workers answer with it later (_tick)
-                info.path = path
-        elif kind == "set_pace":
-            self.engine.set_pace(agent, value)
-            info.pace = value
-        else:
-            raise MessageError(f"unknown command {kind!r}")
-        return {"type": "ok"}
-
-    def agent_states(self) -> list[dict[str, Any]]:
-        """Every live agent's state, as ``GET /api/agents`` reports it (simulation thread)."""
-        frame = self._last
-        rows = {a: k for k, a in enumerate(frame.agents)}
-        labels = self.engine.labels
-        worker_of = getattr(self.engine, "worker_of", None)
-        out = []
-        for agent, info in self._agents.items():
-            k = rows.get(agent)
-            weights = (frame.emotion[k] if k is not None else info.schedule.at(0.0))
-            va = self._va[k] if k is not None and k < len(self._va) else info.schedule.points[0]
-            pts = info.path.points
-            step = max(1, math.ceil(len(pts) / STATE_PATH_POINTS))
-            path = np.vstack((pts[::step], pts[-1:])) if (len(pts) - 1) % step else pts[::step]
-            out.append({
-                "id": agent,
-                "emotion": {n: round(float(w), 4) for n, w in zip(labels, weights, strict=True)
-                            if w > 1e-4},
-                "valence": round(float(va[0]), 4), "arousal": round(float(va[1]), 4),
-                "pace": info.pace, "path": np.round(path, 3).tolist(),
-            })
-            if worker_of is not None:
-                with contextlib.suppress(KeyError):  # its worker was just lost
-                    out[-1]["worker"] = worker_of(agent)
-        return out
 
     # ----------------------------------------------------------------------------- stats
 

@@ -36,9 +36,9 @@ def running_server(**settings: Any) -> Iterator[str]:
             ``max_agents`` (500), ``max_agents_per_client`` (200), ``max_message_bytes``
             (1,000,000), ``max_depth`` (64), ``max_values`` (25,000), ``rate`` (100
             messages/s), ``burst`` (200), ``server_rate`` (500 messages/s),
-            ``work_per_second`` (0.1 s), ``work_burst`` (0.5 s), ``queued_messages`` (32),
-            ``queued_megabytes`` (1), ``buffered_frames`` (2),
-            ``stall_seconds`` (10), ``max_replies`` (1000), ``recording_seconds`` (600),
+            ``work_per_second`` (0.1 s per second of scene time), ``work_burst`` (0.5 s),
+            ``queued_messages`` (32), ``queued_megabytes`` (1), ``buffered_frames`` (2),
+            ``max_backlog_frames`` (60), ``max_replies`` (1000), ``recording_seconds`` (600),
             ``recording_megabytes`` (256), ``kept_recordings`` (16).
 
     Yields:
