@@ -248,9 +248,12 @@ def test_corrupt_bytes_give_a_typed_error(tmp_path, content):
 def test_missing_files_and_buffers_name_the_fix(tmp_path):
     with pytest.raises(MotionFileError, match="no such file"):
         read_gltf(tmp_path / "absent.glb")
-    path = _external_bin(standing_clip(frames=4), tmp_path)
-    (tmp_path / "walk data.bin").unlink()
-    with pytest.raises(MotionFileError, match=r"buffers\[0\]\.uri: .*walk data\.bin.*no such "
+    # In a folder of a long path, which the message must not cut before the buffer's name.
+    deep = tmp_path / ("a-long-folder-name-" * 6) / "and-another"
+    deep.mkdir(parents=True)
+    path = _external_bin(standing_clip(frames=4), deep)
+    (deep / "walk data.bin").unlink()
+    with pytest.raises(MotionFileError, match=r"buffers\[0\]\.uri: .*'walk data\.bin'.*no such "
                        r"file.*keep the \.bin beside"):
         read_gltf(path)
     doc, blob = gltf_document(standing_clip(frames=4))

@@ -14,6 +14,8 @@ against ``MAX_VALUES``, so no declared size makes a large array. Values must be 
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import pygltflib as gl
 
@@ -96,9 +98,13 @@ class Buffers:
         doc = self.doc
         real = resolve_reference(doc.folder, uri, lambda p: doc.fail(f"{where}.uri", p))
 
+        # Named from the document's folder, which the message's file path already gives:
+        # a long absolute path would be cut by quote() just before the name that matters.
+        name = os.path.relpath(real, os.path.realpath(doc.folder))
+
         def fail(problem: str) -> Exception:
-            return doc.fail(f"{where}.uri", f"cannot read the buffer file {quote(real)} "
-                            f"({problem}); {_BESIDE}")
+            return doc.fail(f"{where}.uri", f"cannot read the buffer file {quote(name)} "
+                            f"beside it ({problem}); {_BESIDE}")
 
         self._files[index] = open_regular(real, fail, inside=doc.folder)
         return self._files[index]
