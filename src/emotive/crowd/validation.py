@@ -17,6 +17,7 @@ group or polygon and the fix, before anything runs or is written:
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 import shapely
@@ -24,8 +25,10 @@ from shapely.geometry import MultiPolygon, Point, Polygon
 from shapely.validation import explain_validity
 
 from emotive.crowd.errors import SceneError
-from emotive.crowd.scene import Polygon as Ring
-from emotive.crowd.scene import Scene
+
+if TYPE_CHECKING:  # the scene module runs these checks (load_scene): types only here
+    from emotive.crowd.scene import Polygon as Ring
+    from emotive.crowd.scene import Scene
 
 __all__ = ["BODY_CLEARANCE", "ROUTE_CLEARANCE", "SPAWN_SPACING", "polygon", "route_area",
            "spawn_sites", "validate_scene", "walkable_area"]
