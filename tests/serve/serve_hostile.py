@@ -369,8 +369,10 @@ def campaign(seconds: float = 20.0, quiet: float = 3.0, server_args: tuple[str, 
         if watcher.error is not None:
             raise watcher.error
         frames_after(watcher, SETTLE_FRAMES)
+        # The quiet rate over the frames of ``quiet`` seconds at 30 a second, as the watcher
+        # receives them (a window of frames, not of the wall clock).
         s0, t0 = stats(url), time.perf_counter()
-        time.sleep(quiet)
+        frames_after(watcher, round(quiet * 30))
         s1, t1 = stats(url), time.perf_counter()
         rss_before = rss_mb(proc.pid)
         floods = run_floods(url, seconds)
@@ -396,7 +398,7 @@ def campaign(seconds: float = 20.0, quiet: float = 3.0, server_args: tuple[str, 
         s2 = stats(url)
         frames_after(watcher, SETTLE_FRAMES)
         s3, t3 = stats(url), time.perf_counter()
-        time.sleep(quiet)
+        frames_after(watcher, round(quiet * 30))
         s4, t4 = stats(url), time.perf_counter()
         rss_after = rss_mb(proc.pid)
         watcher.stop()
