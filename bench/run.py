@@ -15,6 +15,7 @@ from pathlib import Path
 
 from bench import (
     bench_bvh,
+    bench_crowd,
     bench_data,
     bench_ddp,
     bench_fcrbm,
@@ -69,6 +70,8 @@ def main() -> None:
         ("feet", lambda: bench_gait.skate_rows(bench_gait.default_model(), d1)),
         ("step", lambda: bench_step.run(agents=300 if args.quick else 1000,
                                         repeats=3 if args.quick else 5)),
+        ("crowd_nav", lambda: bench_crowd.run(agents=(500,) if args.quick else bench_crowd.AGENTS,
+                                              frames=10 if args.quick else bench_crowd.FRAMES)),
         ("onnx", lambda: bench_onnx.run(agents=(1, 100) if args.quick else (1, 100, 1000),
                                         repeats=3 if args.quick else 5)),
         ("serve", lambda: bench_serve.run(seconds=5.0 if args.quick else 10.0)),

@@ -7,7 +7,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from emotive.paths import circle, figure8, line, waypoints, zigzag
+from emotive.paths import GroundPath, circle, figure8, line, waypoints, zigzag
+from emotive.paths import bank as bank_module
 from emotive.paths.bank import PathBank
 
 PATHS = {
@@ -84,3 +85,60 @@ def test_an_open_path_continues_straight_past_both_ends():
     # Before the start: back along the first tangent.
     before = bank.ahead(slots[:1], np.array([0.0]), np.array([-3.0, -0.5]))
     np.testing.assert_allclose(before[0], [[0.0, -3.0], [0.0, -0.5]], atol=1e-9)
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.integers(0, 2**31 - 1))
+def test_paths_added_in_one_batch_answer_as_added_one_by_one(seed):
+    """``add_many`` (one batch of rows and grids) against ``add`` of each path in turn."""
+    rng = np.random.default_rng(seed)
+    names = rng.choice(sorted(PATHS), 6)
+    polylines = [GroundPath.from_polyline(np.cumsum(rng.normal(size=(int(rng.integers(2, 8)),
+                                                                     2)), 0),
+                                          closed=bool(rng.integers(2))) for _ in range(6)]
+    paths = [PATHS[n] for n in names] + polylines
+    one, many = PathBank(), PathBank()
+    one.add(line(2.0))
+    one.release(one.add(circle(1.0)))
+    many.add(line(2.0))
+    many.release(many.add(circle(1.0)))
+    a = np.array([one.add(p) for p in paths])
+    b = np.array(many.add_many(paths + paths[:2]))
+    assert b[-2:].tolist() == b[:2].tolist() and len(many) == len(one)
+    arc = rng.uniform(-1.0, 8.0, len(paths))
+    offsets = np.linspace(-1.0, 2.0, 7)
+    np.testing.assert_allclose(many.ahead(b[:len(paths)], arc, offsets),
+                               one.ahead(a, arc, offsets), atol=1e-9)
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.integers(0, 2**31 - 1))
+def test_nearest_for_many_paths_at_once_equals_each_paths_own(seed):
+    rng = np.random.default_rng(seed)
+    paths = [PATHS[n] for n in rng.choice(sorted(PATHS), 4)] + [
+        GroundPath.from_polyline(np.cumsum(rng.normal(size=(int(rng.integers(2, 8)), 2)), 0),
+                                 closed=bool(rng.integers(2))) for _ in range(4)]
+    bank = PathBank()
+    slots = np.array(bank.add_many(paths))
+    which = rng.integers(0, len(paths), 50)
+    xz = rng.uniform(-4.0, 6.0, (50, 2))
+    got = bank.nearest(slots[which], xz)
+    for i, k in enumerate(which):
+        want_arc, want_gap = paths[k].nearest(xz[i])
+        at = paths[k].position(got[i])
+        assert abs(np.linalg.norm(at - xz[i]) - want_gap) < 1e-9
+        # The same arc, or the same point (a loop's first vertex is also its last).
+        assert (abs(got[i] - want_arc) < 1e-9
+                or np.linalg.norm(at - paths[k].position(want_arc)) < 1e-9)
+
+
+def test_nearest_in_chunks_answers_as_in_one(monkeypatch):
+    """Queries split over several chunks of segments (long paths) give the same arcs."""
+    bank = PathBank()
+    slots = np.array(bank.add_many([PATHS[n] for n in sorted(PATHS)]))
+    rng = np.random.default_rng(0)
+    which = slots[rng.integers(0, len(slots), 40)]
+    xz = rng.uniform(-4.0, 6.0, (40, 2))
+    whole = bank.nearest(which, xz)
+    monkeypatch.setattr(bank_module, "NEAREST_CHUNK", 500)
+    np.testing.assert_allclose(bank.nearest(which, xz), whole, rtol=0, atol=1e-12)

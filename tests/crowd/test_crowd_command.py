@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 pytest.importorskip("jupedsim", reason="the crowd extra is not installed")
@@ -10,7 +11,7 @@ pedpy = pytest.importorskip("pedpy", reason="the crowd extra is not installed")
 from tests.cli_helpers import run_main  # noqa: E402
 from tests.crowd.conftest import CORRIDOR, write_scene  # noqa: E402
 
-from emotive.crowd.measure import measure_run  # noqa: E402
+from emotive.crowd.measure import FREE_WAY, _free_stands, measure_run  # noqa: E402
 
 
 def test_the_command_writes_bvh_trajectories_and_a_preview(tmp_path, monkeypatch, capsys):
@@ -29,3 +30,20 @@ def test_the_command_writes_bvh_trajectories_and_a_preview(tmp_path, monkeypatch
     measured = measure_run(out)
     assert measured["agents"] == 2 and measured["hips_in_obstacles"] == 0
     assert measured["min_hip_distance"] > 0.3 and measured["tie_p99"] < 0.1
+    assert measured["stood_free"] == 0
+    skates = [row["foot_skate"] for row in measured["per_emotion"].values()]
+    assert skates and all(0 < s < 0.5 for s in skates)
+
+
+def test_a_stand_counts_only_while_the_way_is_free_and_before_the_goal():
+    fps = 10.0
+    still = np.zeros((120, 2))
+    walk = np.stack((np.arange(120) * 0.1, np.zeros(120)), axis=1)
+    tracks = {0: (0, still), 1: (0, walk), 2: (0, still.copy()), 3: (0, still.copy())}
+    free = {0: np.ones(120, bool), 1: np.ones(120, bool), 2: np.zeros(120, bool),
+            3: np.ones(120, bool)}
+    stands = _free_stands(tracks, fps, free, ends={3: 30})
+    assert stands[0] == pytest.approx(12.0)
+    assert stands[1] == 0.0 and stands[2] == 0.0
+    assert stands[3] == pytest.approx(3.0)
+    assert FREE_WAY > 0.3

@@ -136,3 +136,46 @@ def distance_to_polyline(points: np.ndarray, line: np.ndarray) -> np.ndarray:
         np.einsum("kc,kc->k", ab, ab), 1e-12)
     nearest = a + np.clip(t, 0, 1)[..., None] * ab
     return np.linalg.norm(points[:, None] - nearest, axis=-1).min(axis=1)
+
+
+@dataclass
+class CrowdRun:
+    """What a page with a scene did: its frames' records (``crowd.frames()`` of the hook) and
+    its summary at the end, with the wall seconds the stepping took (for the report only)."""
+
+    frames: list[dict[str, Any]]
+    summary: dict[str, Any]
+    seconds: float
+
+
+def run_crowd(web: WebPage, max_frames: int, chunk: int = 30) -> CrowdRun:
+    """Step the page's crowd ``chunk`` frames at a time through the test hook until it is done
+    (every agent spawned and at its goal) or ``max_frames`` frames were stepped; collects
+    every frame's record on the way."""
+    import time
+
+    frames: list[dict[str, Any]] = []
+    start = time.perf_counter()
+    while True:
+        web.page.evaluate("async (n) => window.emotiveWeb.test.step(n)", chunk)
+        frames += web.page.evaluate("(k) => window.emotiveWeb.crowd.frames(k)",
+                                    frames[-1]["frame"] + 1 if frames else 0)
+        summary = web.hook("e.crowd.summary()")
+        if summary["done"] or summary["frame"] >= max_frames:
+            return CrowdRun(frames, summary, time.perf_counter() - start)
+
+
+def closest_hips(frames: list[dict[str, Any]]) -> tuple[float, int, int]:
+    """The smallest distance between two bodies' hips in any one frame (metres), the frame
+    where it happened, and the number of pair-frames closer than 0.3 m."""
+    best, where, close = math.inf, -1, 0
+    for record in frames:
+        hips = np.asarray(record["hips"], dtype=np.float64).reshape(-1, 2)
+        if len(hips) < 2:
+            continue
+        d = np.linalg.norm(hips[:, None] - hips[None], axis=-1)
+        upper = d[np.triu_indices(len(hips), 1)]
+        close += int((upper < 0.3).sum())
+        if upper.min() < best:
+            best, where = float(upper.min()), int(record["frame"])
+    return best, where, close

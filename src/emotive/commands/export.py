@@ -92,11 +92,18 @@ def export_web_command(
     ] = None,
     force: Annotated[bool, flag("force", "Replace --out when it holds a previous export (a "
                                 "folder with other files is never replaced).")] = False,
+    scene: Annotated[
+        Path | None,
+        typer.Option("--scene", help="A crowd scene (scene.toml, docs/crowd.md) the page runs "
+                     "with recast-navigation's Detour crowd; needs the crowd extra.",
+                     show_default=False),
+    ] = None,
 ) -> None:
     """Export a static folder that runs gait agents in the browser, without Python.
 
     The page places agents, draws their paths, sets their emotions and offers WebXR AR/VR
-    like the served app; onnxruntime-web runs the whole agent step in the page.
+    like the served app; onnxruntime-web runs the whole agent step in the page. With
+    --scene the page walks the scene's crowd, avoiding each other by Detour's crowd.
     """
     from emotive.errors import ConfigError
     from emotive.io.outputs import folder_name
@@ -111,12 +118,22 @@ def export_web_command(
     from emotive.web.export import check_web_folder, export_web
 
     check_web_folder(folder, force)
+    crowd = None
+    if scene is not None:
+        from emotive.crowd.scene import load_scene
+        from emotive.web.scene import crowd_geometry
+
+        crowd_geometry()
+        crowd = load_scene(scene)
     require("onnx")
     model = load_gait_model(weights)
-    done = export_web(model, folder, force=force)
+    done = export_web(model, folder, force=force, scene=crowd)
     typer.echo(f"wrote {done.folder} ({done.files} files, {done.total_bytes / 1e6:.1f} MB: "
                f"agent.onnx {done.graph_bytes / 1e6:.2f} MB, onnxruntime-web "
                f"{done.runtime_bytes / 1e6:.1f} MB; {model.fps:g} fps, "
                f"{len(model.labels)} labels, from {model.source})")
+    if crowd is not None:
+        typer.echo(f"  scene {crowd.name} (scene.json): {len(crowd.groups)} group(s), "
+                   f"{done.scene_agents} agent(s)")
     typer.echo(f"  serve it: python -m http.server --bind 127.0.0.1 --directory {done.folder}")
     typer.echo("  then open http://127.0.0.1:8000/ (add ?demo=1 for four walking agents)")

@@ -2,12 +2,15 @@
 
 Checks the settings (a host other than a loopback address needs ``--token``), opens the
 listening socket, loads the engine, prints the app's URLs and runs uvicorn until Ctrl-C
-(:mod:`emotive.serve`; the protocol is ``docs/serve.md``). The server and torch are imported
-inside the command so that ``emotive serve --help`` stays fast.
+(:mod:`emotive.serve`; the protocol is ``docs/serve.md``). With ``--scene`` the scene's crowd
+is loaded first (its file, geometry and emotions checked, JuPedSim built), so that a bad
+scene fails before anything binds. The server, torch and the crowd package (JuPedSim) are
+imported inside the command so that ``emotive serve --help`` stays fast.
 """
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Annotated
 
 import typer
@@ -33,6 +36,10 @@ def serve(
     backend: Annotated[str, typer.Option("--backend", help="Where the gait network runs: "
                                          "torch or onnx (ONNX Runtime).")] = "torch",
     seed: SeedOpt = 0,
+    scene: Annotated[Path | None, typer.Option(
+        "--scene", help="A scene file (scene.toml, docs/crowd.md): its groups spawn and "
+        "navigate with JuPedSim, and clients add agents with goals and draw obstacles "
+        "(needs the crowd extra).", show_default=False)] = None,
     workers: Annotated[int | None, typer.Option(
         "--workers", help="Processes stepping the scene's agents, each its share (1: step "
         "in the server's own process). Default: the cores, at most 4.",
@@ -61,14 +68,25 @@ def serve(
         raise ServeError(f"emotive serve needs the serve extra ({exc.name} is missing): "
                          "pip install 'emotive[serve]'") from None
 
+    if workers is None:
+        workers = 1 if scene is not None else default_workers()
     settings = ServeSettings(host=host, port=port, token=token, model=model, backend=backend,
-                             seed=seed, max_agents=max_agents,
+                             seed=seed, scene=None if scene is None else str(scene),
+                             max_agents=max_agents,
                              max_agents_per_client=max_agents_per_client,
-                             workers=default_workers() if workers is None else workers,
-                             worker_kind=worker_kind, step_budget=step_budget).checked()
+                             workers=workers, worker_kind=worker_kind,
+                             step_budget=step_budget).checked()
+    engine = None
+    if settings.scene is not None:
+        try:
+            from emotive.serve.crowd_engine import load_crowd_engine
+        except ModuleNotFoundError as exc:
+            raise ServeError(f"--scene needs the crowd extra ({exc.name} is missing): pip "
+                             "install 'emotive[crowd]'") from None
+        engine = load_crowd_engine(settings.scene, settings.seed)
     sock = bind(settings.host, settings.port)
     try:
-        app = create_app(settings)
+        app = create_app(settings, engine)
         url = base_url(settings.host, bound_port(sock))
         query = f"?token={settings.token}&" if settings.token else "?"
         steppers = ("in this process" if settings.workers == 1
@@ -77,8 +95,13 @@ def serve(
         typer.echo(f"emotive serve: {settings.model} on {settings.backend}, up to "
                    f"{settings.max_agents} agents ({settings.max_agents_per_client} per "
                    f"client), stepped {steppers}")
+        if engine is not None:
+            groups = len(engine.crowd.scene.groups)
+            typer.echo(f"  scene: {settings.scene}, {groups} group(s) (they spawn whatever "
+                       "--max-agents says, and count in it)")
         typer.echo(f"  app:   {url}/{query.rstrip('&?')}")
-        typer.echo(f"  demo:  {url}/{query}demo=1")
+        if engine is None:
+            typer.echo(f"  demo:  {url}/{query}demo=1")
         typer.echo(f"  ws:    {url.replace('http', 'ws', 1)}/ws  (protocol: docs/serve.md)")
         typer.echo("  Ctrl-C stops the server.")
         server = uvicorn_server(app, settings, log_level=log_level)

@@ -33,18 +33,29 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import shapely
 from scipy.spatial import cKDTree
 
 from emotive.crowd.emotion_table import NavParams, navigation_rows
-from emotive.crowd.errors import CrowdError
-from emotive.crowd.goals import GoalState
+from emotive.crowd.errors import CrowdError, SceneError
+from emotive.crowd.goals import GoalState, random_point
 from emotive.crowd.navigation import Navigation
 from emotive.crowd.scene import EmotionSpec, Goal, Group, Scene
-from emotive.crowd.validation import SPAWN_SPACING, polygon, spawn_sites, validate_scene
+from emotive.crowd.steering import SIDESTEP_AHEAD, SIDESTEP_RIGHT, next_corner, sidestep
+from emotive.crowd.validation import (
+    AREA_TOLERANCE,
+    BODY_CLEARANCE,
+    ROUTE_CLEARANCE,
+    SPAWN_SPACING,
+    polygon,
+    route_area,
+    spawn_sites,
+    validate_scene,
+    walkable_area,
+)
 from emotive.data.emotion import EmotionLike
 from emotive.models.gait.generate import STOP_DISTANCE, GaitGenerator, to_model_schedule
 from emotive.models.gait.model import GaitModel
@@ -52,6 +63,17 @@ from emotive.paths import GroundPath
 
 __all__ = ["AgentInfo", "Crowd", "CrowdFrame", "draw_emotion"]
 
+#: Frames between two routings of an agent (its route is kept in between) ...
+ROUTE_EVERY = 15
+#: ... unless its destination moved farther than this (m).
+ROUTE_MOVED = 0.5
+#: An agent that moved less than this (m) over :data:`STALL_FRAMES` frames is stalled.
+STALL_DISTANCE = 0.2
+#: Frames over which an agent's progress is judged (2 s at 30 fps).
+STALL_FRAMES = 60
+#: Neighbour repulsion range (m) of a stalled agent: JuPedSim's default, shorter than the
+#: table's, so that it squeezes past instead of being held off by everyone near it.
+STALL_RANGE = 0.1
 #: A plan shorter than this (m) stops the body where it stands.
 MIN_LEAD = 0.02
 #: Largest turn of a body's path from its heading per frame (radians; 450 degrees/s at 30 fps).
@@ -60,14 +82,6 @@ MAX_TURN = math.radians(15.0)
 KEEP_ANGLE = math.radians(2.0)
 #: ... and change its remaining length by less than this (m, 5 % of the gait's target speed).
 KEEP_LEAD = 0.05
-#: Sideways shift (m) of a steering target to the right of the way there (lanes).
-KEEP_RIGHT = 0.6
-#: Distance (m) to the target over which that shift fades out.
-KEEP_RIGHT_FADE = 3.0
-#: Corners of a route nearer than this (m) are passed over for the next.
-CORNER_PASS = 0.25
-
-
 @dataclass(frozen=True)
 class CrowdFrame:
     """One frame of every body, after :meth:`Crowd.step`.
@@ -177,6 +191,9 @@ class Crowd:
         self._info: dict[int, AgentInfo] = {}
         self._ground: dict[int, np.ndarray] = {}
         self._path_end: dict[int, np.ndarray] = {}
+        self._routes: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        self._since: dict[int, tuple[int, np.ndarray, bool]] = {}
+        self._stuck: set[int] = set()
         self._emotion: dict[int, np.ndarray] = {}
         self._next_rng = 0
         self.frame_index = 0
@@ -261,6 +278,8 @@ class Crowd:
         self.nav.remove(agent)
         del self._ground[agent]
         self._path_end.pop(agent, None)
+        self._routes.pop(agent, None)
+        self._since.pop(agent, None)
 
     def set_emotion(self, agent: int, emotion: EmotionLike) -> None:
         """Give an agent a new emotion (or schedule, from now): its gait and its navigation.
@@ -321,35 +340,78 @@ class Crowd:
     # ----------------------------------------------------------------------------- stepping
 
     def _steer(self, keys: list[int], ground: np.ndarray) -> None:
-        """Move goals on and aim each navigation agent at its route's next corner."""
+        """Move goals on and aim each navigation agent at its route's next corner.
+
+        An agent that steps aside (:func:`~emotive.crowd.steering.sidestep`: someone comes
+        the other way, or a slower one walks ahead) aims instead
+        :data:`~emotive.crowd.steering.SIDESTEP_AHEAD` along its way and
+        :data:`~emotive.crowd.steering.SIDESTEP_RIGHT` to its right or left.
+        :meth:`Navigation.set_targets` keeps the point inside the route area, so in a
+        corridor the side step ends at the wall's clearance.
+        """
+        n = len(keys)
+        targets = np.zeros((n, 2))
+        moving = np.zeros(n, dtype=bool)
         for k, key in enumerate(keys):
             gs = self._info[key].goal
             gs.update(ground[k])
             if gs.standing:
-                self.nav.set_target(key, ground[k])
+                targets[k] = ground[k]
                 continue
-            route = self.nav.route(ground[k], gs.destination)
-            target = route[-1]
-            for corner in route[1:]:
-                if np.hypot(*(corner - ground[k])) > CORNER_PASS:
-                    target = corner
-                    break
-            self.nav.set_target(key, self._keep_right(ground[k], target))
+            targets[k] = next_corner(self._route(key, ground[k], gs.destination), ground[k])
+            moving[k] = True
+        way = targets - ground
+        dist = np.hypot(way[:, 0], way[:, 1])
+        moving &= dist > 1e-6
+        unit = np.zeros_like(way)
+        unit[moving] = way[moving] / dist[moving, None]
+        speed = np.array([self.nav.params(key).desired_speed for key in keys])
+        side = sidestep(ground, unit, moving, speed)
+        stuck = moving & self._stalled(keys, ground)
+        side[stuck] = np.where(side[stuck] > 0, -1.0, 1.0)
+        self._stuck = {key for key, s in zip(keys, stuck, strict=True) if s}
+        aside = side != 0
+        right = np.stack((unit[:, 1], -unit[:, 0]), axis=1)
+        targets[aside] = (ground[aside] + unit[aside] * np.minimum(SIDESTEP_AHEAD,
+                                                                     dist[aside])[:, None]
+                          + right[aside] * (SIDESTEP_RIGHT * side[aside])[:, None])
+        self.nav.set_targets(keys, targets)
 
-    def _keep_right(self, here: np.ndarray, target: np.ndarray) -> np.ndarray:
-        """``target`` moved :data:`KEEP_RIGHT` to the right of the way there, when far.
+    def _stalled(self, keys: list[int], ground: np.ndarray) -> np.ndarray:
+        """``(B,)`` agents stalled: moved under :data:`STALL_DISTANCE` in :data:`STALL_FRAMES`.
 
-        Pedestrians keep to one side in counterflow, so lanes form instead of head-on
-        stand-offs (the collision-free speed model stops agents that meet head on). The
-        shift fades out over the last :data:`KEEP_RIGHT_FADE` metres, so destinations are
-        still reached; :meth:`Navigation.set_target` keeps the point inside the route area.
+        Each agent is judged once per :data:`STALL_FRAMES` of its own, and the verdict
+        holds until the next. A stalled agent that walks somewhere sides the other way
+        (:meth:`_steer`): two agents that block each other head on, each stepping to its
+        right into a wall or a neighbour, both try the left, which is again one consistent
+        side, and they pass.
         """
-        d = np.asarray(target, dtype=np.float64) - here
-        dist = float(np.hypot(*d))
-        if dist < 1e-6:
-            return np.asarray(target, dtype=np.float64)
-        right = np.array([d[1], -d[0]]) / dist
-        return target + right * KEEP_RIGHT * min(1.0, dist / KEEP_RIGHT_FADE)
+        out = np.zeros(len(keys), dtype=bool)
+        for k, key in enumerate(keys):
+            since = self._since.get(key)
+            if since is None or self.frame_index - since[0] >= STALL_FRAMES:
+                stalled = (since is not None
+                           and float(np.hypot(*(ground[k] - since[1]))) < STALL_DISTANCE)
+                since = (self.frame_index, ground[k].copy(), stalled)
+                self._since[key] = since
+            out[k] = since[2]
+        return out
+
+    def _route(self, key: int, here: np.ndarray, destination: tuple[float, float]) -> np.ndarray:
+        """``(K, 2)`` agent ``key``'s route corners to ``destination`` (JuPedSim's routing).
+
+        Routed again every :data:`ROUTE_EVERY` frames (spread over the agents) or when the
+        destination moved more than :data:`ROUTE_MOVED`; in between the last route serves
+        (:func:`next_corner` skips the corners passed).
+        """
+        cached = self._routes.get(key)
+        dest = np.asarray(destination, dtype=np.float64)
+        if (cached is None or (self.frame_index + key) % ROUTE_EVERY == 0
+                or float(np.hypot(*(cached[0] - dest))) > ROUTE_MOVED):
+            route = self.nav.route(here, destination)
+            self._routes[key] = (dest, route)
+            return route
+        return cached[1]
 
     def _body_path(self, key: int, here: np.ndarray, plan: np.ndarray, yaw: float,
                    speed: float) -> GroundPath | None:
@@ -400,14 +462,19 @@ class Crowd:
                 params = NavParams(*(float(x) for x in row))
                 if self._info[key].goal.standing:
                     params = NavParams(1e-3, *(float(x) for x in row[1:]))
+                elif key in self._stuck:
+                    params = replace(params, yield_range=min(params.yield_range, STALL_RANGE))
                 self.nav.set_params(key, params)
         plan = self.nav.advance(ground)
         yaw = self.gait.agent_field("heading") if keys else np.zeros(0)
+        changed, paths = [], []
         for k, key in enumerate(keys):
             path = self._body_path(key, ground[k], plan[k], float(yaw[k]),
                                    self.nav.params(key).desired_speed)
             if path is not None:
-                self.gait.set_path(key, path)
+                changed.append(key)
+                paths.append(path)
+        self.gait.set_paths(changed, paths)
         frame = self.gait.step()
         left = []
         for k, key in enumerate(keys):
@@ -434,3 +501,80 @@ class Crowd:
         """Whether ``xy`` lies in the agent's exit polygon (exit goals)."""
         shape = self._info[agent].goal.exit_shape
         return shape is not None and bool(shapely.contains_xy(shape, *map(float, xy)))
+
+    def add_obstacle(self, ring: Sequence[Sequence[float]]) -> int:
+        """Cut one more obstacle out of the walkable area while the crowd runs.
+
+        Args:
+            ring: ``(K, 2)`` its corners in order, metres on the scene's plane.
+
+        Returns:
+            its number among the scene's obstacles (from 1).
+
+        It is refused (nothing changes) when its polygon crosses itself or encloses no area
+        (:func:`~emotive.crowd.validation.polygon`), lies outside the area, splits the
+        walkable area or closes a way under ``2 * ROUTE_CLEARANCE`` wide (JuPedSim navigates
+        one connected area), covers part of a group's exit, a group's waypoint, or the spawn
+        of a group whose agents still enter, or when a body stands on it or within
+        :data:`~emotive.crowd.validation.BODY_CLEARANCE` of it: a body is walked, never
+        moved, so none may end up inside an obstacle. Otherwise the navigation is built again
+        over the new area with the same agents, parameters and targets
+        (:meth:`Navigation.rebuilt <emotive.crowd.navigation.Navigation.rebuilt>`), goals
+        roam the new route area, a destination left on the obstacle (an agent's own
+        waypoint) moves to the nearest point of the route area (a wanderer draws a new one),
+        and the spawn places are computed again.
+
+        Raises:
+            SceneError: a bad polygon, or one that breaks the scene as above.
+            CrowdError: bodies stand on it (naming them).
+        """
+        where = f"{self.scene.source or self.scene.name}: new obstacle"
+        corners = tuple((float(x), float(y)) for x, y in ring)
+        shape = polygon(corners, where)
+        if not shape.intersects(polygon(self.scene.area, f"{where}: area")):
+            raise SceneError(where, "lies outside the area; draw it inside the area")
+        scene = Scene(self.scene.area, (*self.scene.obstacles, corners), self.scene.groups,
+                      self.scene.name, self.scene.source)
+        walkable = walkable_area(scene)
+        if walkable.is_empty or walkable.geom_type != "Polygon" or \
+                route_area(walkable).geom_type != "Polygon":
+            raise SceneError(where, "splits the walkable area or closes a way (routes keep "
+                             f"{ROUTE_CLEARANCE:g} m from walls, so a way narrower than "
+                             f"{2 * ROUTE_CLEARANCE:g} m is closed); leave a wider way around it")
+        for s in self._spawners:
+            g = s.group
+            entering = self.frame_index == 0 or (g.flow > 0 and (not g.count
+                                                                 or s.spawned < g.count))
+            covered = []
+            if entering and shape.intersection(polygon(g.spawn, g.name)).area > AREA_TOLERANCE:
+                covered.append(f"the spawn of group {g.name!r}, where agents still enter")
+            if g.goal.kind == "exit" and shape.intersection(
+                    polygon(g.goal.polygon, g.name)).area > AREA_TOLERANCE:
+                covered.append(f"the exit of group {g.name!r}")
+            if any(shapely.intersects_xy(shape, x, y) for x, y in g.goal.points):
+                covered.append(f"a waypoint of group {g.name!r}")
+            if covered:
+                raise SceneError(where, f"covers {covered[0]}; draw it elsewhere")
+        keys = list(self.nav.keys)
+        if keys:
+            ground = np.array([self._ground[k] for k in keys])
+            near = [keys[i] for i in np.flatnonzero(
+                shapely.distance(shape, shapely.points(ground)) < BODY_CLEARANCE)]
+            if near:
+                shown = ", ".join(map(str, near[:20])) + (", ..." if len(near) > 20 else "")
+                raise CrowdError(f"{where}: agent(s) {shown} stand on it or within "
+                                 f"{BODY_CLEARANCE:g} m of it; draw it where nobody stands "
+                                 "(bodies are walked, never moved)")
+        nav = self.nav.rebuilt(walkable)
+        self.scene, self.walkable, self.nav = scene, walkable, nav
+        self._routes.clear()
+        for s in self._spawners:
+            s.sites = spawn_sites(polygon(s.group.spawn, s.group.name), walkable)
+        for key in keys:
+            gs = self._info[key].goal
+            gs.roam = nav.route_area
+            if not shapely.contains_xy(walkable, *gs.destination):
+                gs.destination = (random_point(nav.route_area, gs.rng)
+                                  if gs.goal.kind == "wander"
+                                  else nav.inside(gs.destination, nav.route_area))
+        return len(scene.obstacles)

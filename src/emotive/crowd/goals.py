@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import shapely
 from shapely.geometry import MultiPolygon, Point, Polygon
+from shapely.ops import nearest_points
 
 from emotive.crowd.scene import Goal
 
@@ -21,6 +22,8 @@ __all__ = ["ARRIVAL_RADIUS", "GoalState", "random_point"]
 
 #: Distance (m) at which a waypoint or wander point counts as reached.
 ARRIVAL_RADIUS = 0.5
+#: How far inside its exit polygon (m) an agent aims, when the polygon is that wide.
+EXIT_DEPTH = 0.3
 #: Tries of rejection sampling for a random point in a polygon.
 _TRIES = 1000
 
@@ -60,13 +63,16 @@ class GoalState:
     reached: int = 0
     done: bool = False
     standing: bool = field(default=False)
+    _exit_target: Polygon | MultiPolygon | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         if self.goal.kind == "exit":
             self.exit_shape = Polygon(self.goal.polygon)
             target = self.exit_shape.intersection(self.roam)
-            self.destination = random_point(target if not target.is_empty
-                                            else self.exit_shape, self.rng)
+            target = target if not target.is_empty else self.exit_shape
+            inner = target.buffer(-EXIT_DEPTH)
+            self._exit_target = inner if not inner.is_empty else target
+            self.destination = random_point(self._exit_target, self.rng)
         elif self.goal.kind == "waypoints":
             self.destination = self.goal.points[0]
         else:
@@ -80,6 +86,9 @@ class GoalState:
             assert self.exit_shape is not None
             if shapely.contains_xy(self.exit_shape, float(xy[0]), float(xy[1])):
                 self.reached, self.done = 1, True
+            else:
+                q = nearest_points(self._exit_target, Point(float(xy[0]), float(xy[1])))[0]
+                self.destination = (float(q.x), float(q.y))
             return
         if self.standing or np.hypot(*(np.asarray(self.destination) - xy)) > ARRIVAL_RADIUS:
             return

@@ -15,11 +15,18 @@ from the BVH files by forward kinematics, places each file at its first frame
 * ``tie_p99``: the 99th percentile of the distance between a body's hips and its navigation
   agent at the same frame (m);
 * ``per_emotion``: per dominant emotion, the agents, their mean walking speed (m/s, frames
-  where the hips move) and their mean distance to the nearest other hip (m).
+  where the hips move), their mean distance to the nearest other hip (m) and their foot
+  skate (m/s, :func:`emotive.eval.feet.foot_skating`, the evaluation suite's measure, over
+  every agent's whole BVH);
+* ``stood_free``: agents that stood (hips under :data:`WALKING` over one second) for more
+  than :data:`STAND_LIMIT` seconds in a row while no other hip was within :data:`FREE_WAY`
+  of theirs, before they met their goal (their way was free, yet they stood), and
+  ``longest_free_stand``, the longest such stand (s).
 
 Run as ``python -m emotive.crowd.measure OUT_DIR [OUT_DIR_NO_AVOIDANCE]``: prints JSON; with a
 second folder (the same scene and seed run with ``--no-avoidance``) it adds the close pairs
-avoidance saves.
+avoidance saves and, per emotion, the foot skate of the crowd over that of the same agents
+walking without avoidance (each on its own line, as if alone: ``skate_ratio``).
 """
 
 from __future__ import annotations
@@ -36,6 +43,8 @@ from scipy.spatial import cKDTree
 from shapely.geometry import Polygon
 
 from emotive.core.roles import resolve_roles
+from emotive.crowd.goals import ARRIVAL_RADIUS
+from emotive.eval.feet import foot_skating
 from emotive.io.bvh import read_bvh
 from emotive.transforms.kinematics import forward_kinematics_np
 
@@ -47,26 +56,65 @@ CLOSE = 0.3
 INSIDE_TOLERANCE = 0.05
 #: Hip speed (m/s) above which a frame counts as walking.
 WALKING = 0.1
+#: Longest stand (s) allowed while the way is free.
+STAND_LIMIT = 5.0
+#: No other hip within this distance (m): the way is free.
+FREE_WAY = 1.0
 
 
-def hip_tracks(folder: Path) -> tuple[dict[int, tuple[int, np.ndarray]], float, list[dict]]:
+def hip_tracks(folder: Path, skate: dict[int, float] | None = None,
+               ) -> tuple[dict[int, tuple[int, np.ndarray]], float, list[dict]]:
     """Every agent's first frame and hip ground track ``(T, 2)`` from the BVH files.
+
+    Args:
+        folder: the run folder.
+        skate: filled with each agent's foot skate (m/s) when given.
 
     Returns:
         ``{id: (first frame, (T, 2) hips x, y)}``, the frame rate and the ``agents.csv`` rows.
     """
     with open(folder / "agents.csv", encoding="utf-8", newline="") as f:
         rows = list(csv.DictReader(f))
-    tracks, fps, hip = {}, 0.0, None
+    tracks, fps, hip, roles = {}, 0.0, None, None
     for row in rows:
         motion = read_bvh(folder / row["file"])
-        if hip is None:
-            hip = int(resolve_roles(motion.skeleton).indices(("root",))[0])
+        if roles is None:
+            roles = resolve_roles(motion.skeleton)
+            hip = int(roles.indices(("root",))[0])
         _, world = forward_kinematics_np(motion.rotations, motion.positions,
                                          motion.skeleton.parents)
         tracks[int(row["id"])] = (int(row["first_frame"]), world[:, hip][:, [0, 2]])
         fps = motion.fps
+        if skate is not None and motion.num_frames > 1:
+            skate[int(row["id"])] = float(foot_skating(motion.positions_with_end_sites(), roles,
+                                                       fps).mean_speed)
     return tracks, fps, rows
+
+
+def _free_stands(tracks: dict[int, tuple[int, np.ndarray]], fps: float,
+                 free: dict[int, np.ndarray], ends: dict[int, int]) -> dict[int, float]:
+    """Per agent, its longest stand (s) while its way was free, before frame ``ends[a]``.
+
+    Args:
+        tracks: as :func:`hip_tracks`.
+        fps: frame rate.
+        free: ``(T,)`` per agent, whether no other hip was within :data:`FREE_WAY`.
+        ends: per agent, the frame (of its own track) from which it has met its goal.
+    """
+    window = max(round(fps), 1)
+    out = {}
+    for a, (_, xy) in tracks.items():
+        n = min(len(xy), ends.get(a, len(xy)))
+        if n <= window:
+            continue
+        moved = np.hypot(*(xy[window:n] - xy[:n - window]).T) * fps / window
+        stand = (moved < WALKING) & free[a][:n - window]
+        run = longest = 0
+        for s in stand:
+            run = run + 1 if s else 0
+            longest = max(longest, run)
+        out[a] = (longest + window) / fps if longest else 0.0
+    return out
 
 
 def _per_frame(tracks: dict[int, tuple[int, np.ndarray]]) -> dict[int, tuple[list, np.ndarray]]:
@@ -93,14 +141,16 @@ def _navigation(folder: Path) -> dict[tuple[int, int], np.ndarray]:
 def measure_run(folder: str | Path) -> dict[str, Any]:
     """The measures of one written run (see the module docstring)."""
     folder = Path(folder)
-    tracks, fps, rows = hip_tracks(folder)
+    skate: dict[int, float] = {}
+    tracks, fps, rows = hip_tracks(folder, skate)
     scene = json.loads((folder / "scene.json").read_text(encoding="utf-8"))
     area = Polygon(scene["area"]["polygon"])
     obstacles = [Polygon(o["polygon"]) for o in scene["area"]["obstacles"]]
     groups = {g["name"]: g for g in scene["groups"]}
     min_d, pairs, pair_frames = np.inf, set(), 0
     nearest: dict[int, list[float]] = {a: [] for a in tracks}
-    for ids, pts in _per_frame(tracks).values():
+    free = {a: np.ones(len(xy), dtype=bool) for a, (_, xy) in tracks.items()}
+    for frame, (ids, pts) in _per_frame(tracks).items():
         if len(pts) < 2:
             continue
         tree = cKDTree(pts)
@@ -108,6 +158,7 @@ def measure_run(folder: str | Path) -> dict[str, Any]:
         min_d = min(min_d, float(d[:, 1].min()))
         for a, dd in zip(ids, d[:, 1], strict=True):
             nearest[a].append(float(dd))
+            free[a][frame - tracks[a][0]] = dd > FREE_WAY
         for i, k in tree.query_pairs(CLOSE):
             pairs.add((min(ids[i], ids[k]), max(ids[i], ids[k])))
             pair_frames += 1
@@ -122,7 +173,7 @@ def measure_run(folder: str | Path) -> dict[str, Any]:
             deep = shapely.contains(o, pts) & (shapely.distance(o.boundary, pts)
                                                > INSIDE_TOLERANCE)
             inside += int(deep.sum())
-    reached, per = 0, {}
+    reached, per, ends = 0, {}, {}
     for row in rows:
         a = int(row["id"])
         _, xy = tracks[a]
@@ -132,12 +183,19 @@ def measure_run(folder: str | Path) -> dict[str, Any]:
         else:
             ok = row["reached"] == "1"
         reached += ok
+        if ok and isinstance(goal, dict) and goal.get("waypoints"):
+            last = np.asarray(goal["waypoints"][-1], dtype=np.float64)
+            at = np.flatnonzero(np.hypot(*(xy - last).T) <= ARRIVAL_RADIUS)
+            ends[a] = int(at[0]) if len(at) else len(xy)
         speed = np.hypot(*np.diff(xy, axis=0).T) * fps
         walking = speed[speed > WALKING]
-        e = per.setdefault(row["label"], {"agents": 0, "speed": [], "nearest": []})
+        e = per.setdefault(row["label"], {"agents": 0, "speed": [], "nearest": [], "skate": []})
         e["agents"] += 1
         e["speed"].extend(walking.tolist())
         e["nearest"].extend(nearest[a])
+        if a in skate:
+            e["skate"].append(skate[a])
+    stands = _free_stands(tracks, fps, free, ends)
     nav = _navigation(folder)
     gaps = [float(np.hypot(*(xy[k] - nav[(a, first + k)])))
             for a, (first, xy) in tracks.items() for k in range(len(xy))
@@ -150,10 +208,14 @@ def measure_run(folder: str | Path) -> dict[str, Any]:
         "goal_share": reached / max(len(rows), 1),
         "tie_p99": float(np.percentile(gaps, 99)) if gaps else 0.0,
         "tie_max": float(max(gaps)) if gaps else 0.0,
+        "stood_free": sum(1 for t in stands.values() if t > STAND_LIMIT),
+        "longest_free_stand": max(stands.values(), default=0.0),
         "per_emotion": {k: {"agents": v["agents"],
                             "mean_speed": float(np.mean(v["speed"])) if v["speed"] else 0.0,
                             "mean_nearest": float(np.mean(v["nearest"])) if v["nearest"]
-                            else 0.0} for k, v in sorted(per.items())},
+                            else 0.0,
+                            "foot_skate": float(np.mean(v["skate"])) if v["skate"] else 0.0}
+                        for k, v in sorted(per.items())},
     }
 
 
@@ -170,6 +232,10 @@ def main(argv: list[str] | None = None) -> None:
         result["without_avoidance"] = {k: base[k] for k in (
             "min_hip_distance", "close_pairs", "close_pair_frames", "goal_share")}
         result["close_pairs_saved"] = base["close_pairs"] - result["close_pairs"]
+        for label, row in result["per_emotion"].items():
+            alone = base["per_emotion"].get(label, {}).get("foot_skate", 0.0)
+            row["skate_alone"] = alone
+            row["skate_ratio"] = row["foot_skate"] / alone if alone > 0 else float("nan")
     print(json.dumps(result, indent=2))
 
 

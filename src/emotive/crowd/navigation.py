@@ -43,6 +43,7 @@ other commands never load it (the ``crowd`` extra).
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from typing import Any
 
@@ -66,6 +67,15 @@ MODELS = ("cfs", "avm")
 MIN_ADD_RADIUS = 0.005
 #: Gap (m) kept below the distance limits when adding an agent.
 ADD_MARGIN = 1e-3
+
+
+@functools.lru_cache(maxsize=64)
+def _shrunk(shape: Polygon | MultiPolygon) -> Polygon | MultiPolygon:
+    """``shape`` 1 mm smaller, so that a nearest point on it lies strictly inside.
+
+    Cached: an area is shrunk once, not at each point that falls outside it.
+    """
+    return shape.buffer(-1e-3)
 
 
 def import_jupedsim() -> Any:
@@ -152,6 +162,14 @@ class Navigation:
         """Steer an agent towards a point (inside the route area)."""
         self._targets[key] = self.inside((float(target[0]), float(target[1])), self.route_area)
 
+    def set_targets(self, keys: Sequence[int], targets: np.ndarray) -> None:
+        """:meth:`set_target` for many agents: ``targets`` ``(K, 2)`` for ``keys``."""
+        pts = np.asarray(targets, dtype=np.float64).reshape(-1, 2)
+        ok = shapely.contains_xy(self.route_area, pts[:, 0], pts[:, 1])
+        for key, p, good in zip(keys, pts, ok, strict=True):
+            xy = (float(p[0]), float(p[1]))
+            self._targets[key] = xy if good else self.inside(xy, self.route_area)
+
     def route(self, start: Sequence[float], goal: Sequence[float]) -> np.ndarray:
         """``(K, 2)`` the shortest route's corners from ``start`` to ``goal`` (both included)."""
         a = self.inside((float(start[0]), float(start[1])), self.route_area)
@@ -161,9 +179,9 @@ class Navigation:
     @staticmethod
     def inside(p: tuple[float, float], shape: Polygon | MultiPolygon) -> tuple[float, float]:
         """``p``, or the nearest point of ``shape`` when ``p`` lies outside it."""
-        if shape.contains(Point(p)):
+        if shapely.contains_xy(shape, p[0], p[1]):
             return p
-        q = nearest_points(shape.buffer(-1e-3), Point(p))[0]
+        q = nearest_points(_shrunk(shape), Point(p))[0]
         return (float(q.x), float(q.y))
 
     # ----------------------------------------------------------------------------- stepping
@@ -241,3 +259,25 @@ class Navigation:
             self._ids[key] = jid
             return
         # Two bodies on the same spot: this one waits a frame without a navigation agent.
+
+    def rebuilt(self, walkable: Polygon | MultiPolygon) -> Navigation:
+        """A navigation over another walkable area, with these agents, parameters and targets.
+
+        For geometry that changes while a crowd runs (an obstacle added): JuPedSim builds its
+        simulation and routing for one geometry, so both are built again. Nothing is carried
+        over but the agents' keys (in order), parameters and targets (kept inside the new
+        route area); the next :meth:`advance` adds every agent where its body stands, as each
+        frame's tie-back does.
+
+        Raises:
+            CrowdError: JuPedSim refuses the area (e.g. it is not one connected piece).
+        """
+        try:
+            nav = Navigation(walkable, self.fps, avoidance=self.avoidance,
+                             substeps=self.substeps, model=self.model)
+        except RuntimeError as exc:
+            raise CrowdError(f"JuPedSim cannot navigate the new walkable area ({exc}); keep "
+                             "it one connected piece") from None
+        for key in self.keys:
+            nav.add(key, self._params[key], self._targets[key])
+        return nav

@@ -10,14 +10,19 @@ interpolation: no Python loop over paths. The queries reproduce
 way whether the bank holds one path or a thousand.
 
 Adding a path costs ``O(N)`` for its ``N`` samples (amortized: the table doubles when full);
-releasing one marks its rows dead, and the table is compacted once dead rows outnumber live
-ones. Slots are reference counted, so agents sharing one path share its rows.
+:meth:`PathBank.add_many` adds many paths with the same few array operations as one (their
+rows and uniform grids made in one batch), and :meth:`PathBank.nearest` finds, for many
+agents, the nearest point of each one's own path in one batch over their segments (a crowd
+sends hundreds of agents along new paths every frame). Releasing a path marks its rows dead,
+and the table is compacted once dead rows outnumber live ones. Slots are reference counted,
+so agents sharing one path share its rows.
 
 Legend: ``B`` queries, ``N`` polyline samples.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -32,6 +37,8 @@ CURVATURE_WINDOW = 0.2
 
 #: Arc spacing (metres) of the uniform grid :meth:`PathBank.ahead` interpolates.
 GRID_SPACING = 0.01
+#: Path segments :meth:`PathBank.nearest` measures at once (bounds its tables).
+NEAREST_CHUNK = 1 << 18
 
 
 @dataclass
@@ -46,18 +53,51 @@ class _Slot:
     users: int = 1
 
 
-def _grid(path: GroundPath) -> tuple[np.ndarray, float, np.ndarray]:
-    """The path on a uniform arc grid of about :data:`GRID_SPACING` (a whole number of steps).
+def _wrapped(s: np.ndarray, length: np.ndarray, closed: np.ndarray) -> np.ndarray:
+    """Arc lengths ``s`` wrapped onto loops and clamped to open paths' ends (broadcasting)."""
+    return np.where(closed, np.mod(s, length), np.clip(s, 0.0, length))
+
+
+def _grids(bank: PathBank, first: np.ndarray, last: np.ndarray, base: np.ndarray,
+           length: np.ndarray, closed: np.ndarray) -> tuple[list[np.ndarray], np.ndarray,
+                                                         np.ndarray]:
+    """Many paths, already in the table, on uniform arc grids of about :data:`GRID_SPACING`.
+
+    Each path gets a whole number of steps; the points are interpolated from its rows, as
+    :meth:`PathBank.position` does, for every path in one search.
+
+    Args:
+        bank: the bank holding the paths' rows.
+        first: ``(P,)`` each path's first row.
+        last: ``(P,)`` each path's last row.
+        base: ``(P,)`` each path's key base.
+        length: ``(P,)`` arc lengths, metres.
+        closed: ``(P,)`` which paths are loops.
 
     Returns:
-        ``(N + 1, 2)`` grid points, the grid spacing (metres) and ``(2, 2)`` unit tangents at
-        the start and the end.
+        The ``(N_p + 1, 2)`` grid of each path, ``(P,)`` grid spacings (metres) and
+        ``(P, 2, 2)`` unit tangents at each path's start and end (as
+        :meth:`GroundPath.tangent <emotive.paths.GroundPath.tangent>`: central differences
+        over one sample spacing, wrapped on loops, clamped at open ends).
     """
-    steps = max(round(path.length / GRID_SPACING), 1)
-    spacing = path.length / steps
-    points = path.position(np.arange(steps + 1) * spacing)
-    yaw = path.heading(np.array([0.0, path.length]))
-    return points, spacing, np.stack((np.sin(yaw), np.cos(yaw)), -1)
+    steps = np.maximum(np.round(length / GRID_SPACING), 1.0)
+    spacing = length / steps
+    # One search for all: each path's grid, then the 4 ends of its two tangents (wrapped on
+    # loops and clamped on open paths below, as GroundPath.tangent does).
+    sizes = steps.astype(np.int64) + 5
+    first_query = np.cumsum(sizes) - sizes
+    which = np.repeat(np.arange(len(steps)), sizes)
+    s = (np.arange(sizes.sum()) - first_query[which]) * spacing[which]
+    tips = first_query[:, None] + sizes[:, None] - np.arange(4, 0, -1)          # (P, 4)
+    h = np.minimum(SAMPLE_SPACING, 0.25 * length)
+    end = np.where(closed, 0.0, length)
+    s[tips] = np.stack((h, end + h, -h, end - h), -1)
+    points = bank._interpolate(first[which], last[which],
+                               _wrapped(s, length[which], closed[which]) + base[which])
+    d = points[tips[:, :2]] - points[tips[:, 2:]]                               # (P, 2, 2)
+    tangents = d / np.maximum(np.linalg.norm(d, axis=-1, keepdims=True), 1e-12)
+    bounds = np.stack((first_query, tips[:, 0]), -1).tolist()
+    return [points[a:b] for a, b in bounds], spacing, tangents
 
 
 class PathBank:
@@ -95,23 +135,53 @@ class PathBank:
 
     def add(self, path: GroundPath) -> int:
         """Hold ``path`` (again, if it is already held) and return its slot."""
-        known = self._by_path.get(id(path))
-        if known is not None:
-            self._slots[known].users += 1
-            return known
-        n = len(path.arc)
-        self._reserve(self._used + n)
-        rows = slice(self._used, self._used + n)
-        self._key[rows] = path.arc + self._top
-        self._pts[rows] = path.points
-        slot = self._next
-        self._next += 1
-        self._slots[slot] = _Slot(path, self._used, n, self._top, *_grid(path))
-        self._by_path[id(path)] = slot
-        self._used += n
-        self._top += path.length + _GAP
+        return self.add_many([path])[0]
+
+    def add_many(self, paths: Sequence[GroundPath]) -> list[int]:
+        """Hold each of ``paths`` (as :meth:`add`, in order); returns their slots.
+
+        The new paths' rows and uniform grids are made in one batch: a few array operations
+        for any number of paths (a crowd gives hundreds of agents a new path every frame).
+        """
+        slots: list[int] = []
+        fresh: dict[int, int] = {}       # id of a new path -> its slot
+        new: list[GroundPath] = []
+        users: dict[int, int] = {}
+        for path in paths:
+            slot = self._by_path.get(id(path), fresh.get(id(path)))
+            if slot is None:
+                slot = fresh[id(path)] = self._next + len(new)
+                new.append(path)
+            users[slot] = users.get(slot, 0) + 1
+            slots.append(slot)
+        if new:
+            self._insert(new, list(fresh.values()), users)
+        for slot in set(users) - set(fresh.values()):
+            self._slots[slot].users += users[slot]
+        return slots
+
+    def _insert(self, paths: list[GroundPath], slots: list[int], users: dict[int, int]
+                ) -> None:
+        """Write new ``paths`` into the table as ``slots`` (numbered from ``self._next``)."""
+        counts = np.array([len(p.arc) for p in paths], dtype=np.int64)
+        length = np.array([p.length for p in paths])
+        closed = np.array([p.closed for p in paths], dtype=bool)
+        base = self._top + np.concatenate(([0.0], np.cumsum(length + _GAP)[:-1]))
+        first = self._used + np.cumsum(counts) - counts
+        total = int(counts.sum())
+        self._reserve(self._used + total)
+        rows = slice(self._used, self._used + total)
+        self._key[rows] = np.concatenate([p.arc for p in paths]) + np.repeat(base, counts)
+        self._pts[rows] = np.concatenate([p.points for p in paths])
+        self._used += total
+        grids, spacing, ends = _grids(self, first, first + counts - 1, base, length, closed)
+        for k, (path, slot) in enumerate(zip(paths, slots, strict=True)):
+            self._slots[slot] = _Slot(path, int(first[k]), int(counts[k]), float(base[k]),
+                                      grids[k], float(spacing[k]), ends[k], users[slot])
+            self._by_path[id(path)] = slot
+        self._next += len(paths)
+        self._top = float(base[-1] + length[-1] + _GAP)
         self._table_dirty = True
-        return slot
 
     def release(self, slot: int) -> None:
         """Drop one hold on ``slot``; its rows are freed when nobody holds it.
@@ -193,8 +263,15 @@ class PathBank:
         return self._closed[slots]
 
     def _wrap(self, slots: np.ndarray, s: np.ndarray) -> np.ndarray:
-        length = self._length[slots]
-        return np.where(self._closed[slots], np.mod(s, length), np.clip(s, 0.0, length))
+        return _wrapped(s, self._length[slots], self._closed[slots])
+
+    def _interpolate(self, first: np.ndarray, last: np.ndarray, key: np.ndarray) -> np.ndarray:
+        """``(..., 2)`` points at table keys ``key``, each within its path's rows."""
+        i = np.searchsorted(self._key[:self._used], key, side="right") - 1
+        i = np.clip(i, first, last - 1)
+        k0, k1 = self._key[i], self._key[i + 1]
+        t = np.clip((key - k0) / np.maximum(k1 - k0, 1e-300), 0.0, 1.0)[..., None]
+        return self._pts[i] * (1.0 - t) + self._pts[i + 1] * t
 
     def position(self, slots: np.ndarray, s: np.ndarray) -> np.ndarray:
         """``(..., B, 2)`` ``(x, z)`` of slot ``slots[i]``'s path at arc length ``s[..., i]``.
@@ -205,11 +282,7 @@ class PathBank:
         self._tables()
         slots = np.asarray(slots, dtype=np.int64)
         key = self._wrap(slots, np.asarray(s, dtype=np.float64)) + self._base[slots]
-        i = np.searchsorted(self._key[:self._used], key, side="right") - 1
-        i = np.clip(i, self._first[slots], self._last[slots] - 1)
-        k0, k1 = self._key[i], self._key[i + 1]
-        t = np.clip((key - k0) / np.maximum(k1 - k0, 1e-300), 0.0, 1.0)[..., None]
-        return self._pts[i] * (1.0 - t) + self._pts[i + 1] * t
+        return self._interpolate(self._first[slots], self._last[slots], key)
 
     def heading(self, slots: np.ndarray, s: np.ndarray) -> np.ndarray:
         """``(..., B)`` yaw of the tangent (0 faces +Z), as :meth:`GroundPath.heading`.
@@ -240,6 +313,46 @@ class PathBank:
         span = np.where(closed, 2 * h, self._wrap(slots, s + h) - self._wrap(slots, s - h))
         turn = np.angle(np.exp(1j * (b - a)))
         return np.where(span > 1e-9, turn / np.maximum(span, 1e-9), 0.0)
+
+    def nearest(self, slots: np.ndarray, xz: np.ndarray) -> np.ndarray:
+        """``(B,)`` arc length of the point of slot ``slots[i]``'s path nearest to ``xz[i]``.
+
+        As :meth:`GroundPath.nearest <emotive.paths.GroundPath.nearest>` (every segment
+        tried, zero-length ones skipped, the earlier segment at equal distance), for all the
+        queries in one batch over their paths' segments (in chunks of about
+        :data:`NEAREST_CHUNK` segments, so memory stays bounded for long paths).
+
+        Args:
+            slots: ``(B,)`` slots.
+            xz: ``(B, 2)`` ground points ``(x, z)``, metres.
+        """
+        # From the slots, not the per-slot columns: those are rebuilt for all paths after
+        # any change, and a query right after one path's change should not pay for that.
+        held = [self._slots[int(slot)] for slot in np.asarray(slots).reshape(-1)]
+        xz = np.asarray(xz, dtype=np.float64).reshape(-1, 2)
+        first = np.array([h.first for h in held], dtype=np.int64)
+        base = np.array([h.base for h in held])
+        segments = np.array([h.count - 1 for h in held], dtype=np.int64)
+        done = np.cumsum(segments)
+        arc = np.empty(len(held))
+        lo = 0
+        while lo < len(held):
+            budget = (done[lo - 1] if lo else 0) + NEAREST_CHUNK
+            hi = max(lo + 1, int(np.searchsorted(done, budget, side="right")))
+            n = segments[lo:hi]
+            owner = np.repeat(np.arange(hi - lo), n)
+            start = np.cumsum(n) - n
+            row = np.arange(n.sum()) - np.repeat(start, n) + np.repeat(first[lo:hi], n)
+            a, d = self._pts[row], self._pts[row + 1] - self._pts[row]
+            length2 = (d * d).sum(-1)
+            q = xz[lo:hi][owner]
+            along = np.clip(((q - a) * d).sum(-1) / np.maximum(length2, 1e-300), 0.0, 1.0)
+            dist = np.where(length2 > 0, np.hypot(*(q - a - along[:, None] * d).T), np.inf)
+            hits = np.flatnonzero(dist == np.minimum.reduceat(dist, start)[owner])
+            k = hits[np.searchsorted(owner[hits], np.arange(hi - lo))]
+            arc[lo:hi] = (self._key[row[k]] - base[lo:hi]) + along[k] * np.sqrt(length2[k])
+            lo = hi
+        return arc
 
     def ahead(self, slots: np.ndarray, arc: np.ndarray, offsets: np.ndarray) -> np.ndarray:
         """``(B, K, 2)`` points of each slot's path at ``arc + offsets``.

@@ -9,6 +9,8 @@ The protocol (routes, control messages, the binary frame layouts) is documented 
 :mod:`~emotive.serve.limits` (message size, nesting depth, rate),
 :mod:`~emotive.serve.messages` (control messages into commands),
 :mod:`~emotive.serve.engines` (one adapter over the gait and FCRBM streaming generators),
+:mod:`~emotive.serve.crowd_engine` (a scene's crowd as the engine, ``--scene``; imported only
+then),
 :mod:`~emotive.serve.worker_process` (a step worker's side: its requests and frame block),
 :mod:`~emotive.serve.shards` (the server's handles on its step workers, threads or
 processes), :mod:`~emotive.serve.workers` (the scene split over step workers),

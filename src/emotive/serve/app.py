@@ -7,7 +7,9 @@ anything binds), then builds a FastAPI app whose lifespan starts the step worker
 (:class:`~emotive.serve.preparation.Preparer`) and stops them all, workers last. A websocket
 chooses its frame layout with ``?encoding=1`` or ``2`` (default
 :data:`~emotive.serve.frames.DEFAULT_ENCODING`). Routes are those of
-``docs/serve.md``; with a token every ``/api`` route and the websocket check it with
+``docs/serve.md``; with ``--scene`` the engine is the scene's crowd
+(:mod:`~emotive.serve.crowd_engine`), whose geometry every websocket gets first and
+``/api/scene`` answers. With a token every ``/api`` route and the websocket check it with
 :func:`hmac.compare_digest` (``Authorization: Bearer T`` or ``?token=T``); the page at ``/``
 and its files under ``/static`` are public, as they hold no scene data. Browsers let any site
 reach ``127.0.0.1``, so a websocket from a page of another site is refused
@@ -147,18 +149,27 @@ def _mannequin_bytes(engine: Engine) -> bytes:
     return encode_gltf(doc, blob, binary=True)
 
 
-def create_app(settings: ServeSettings | None = None) -> FastAPI:
+def create_app(settings: ServeSettings | None = None, engine: Any = None) -> FastAPI:
     """The app of one server, with a fresh engine of the settings' model and backend.
 
     Args:
         settings: the server's settings (checked here; default: :class:`ServeSettings`).
+        engine: the engine, already loaded (the command loads a scene's before it binds);
+            ``None``: loaded here, a scene's crowd with ``settings.scene``
+            (:func:`~emotive.serve.crowd_engine.load_crowd_engine`).
 
     Raises:
         ServeError: bad settings, or a model or backend this installation lacks.
+        SceneError: a bad scene file. CrowdError: JuPedSim is missing or refuses the scene.
         ConfigError: the model's weights are missing or corrupt.
     """
     settings = (settings or ServeSettings()).checked()
-    engine = load_engine(settings.model, settings.backend, settings.seed)
+    if engine is None and settings.scene is not None:
+        from emotive.serve.crowd_engine import load_crowd_engine  # noqa: PLC0415 (the crowd)
+
+        engine = load_crowd_engine(settings.scene, settings.seed)
+    elif engine is None:
+        engine = load_engine(settings.model, settings.backend, settings.seed)
     state = _State(settings, engine)
 
     @asynccontextmanager
@@ -208,8 +219,12 @@ def create_app(settings: ServeSettings | None = None) -> FastAPI:
         if state.sim is None or state.preparer is None:
             await websocket.close(1013, "the scene is not running")
             return
-        await Session(websocket, state.sim, state.hub, state.preparer, settings,
-                      state.reads, int(encoding)).run()
+        session = Session(websocket, state.sim, state.hub, state.preparer, settings,
+                          state.reads, int(encoding))
+        scene = getattr(engine, "scene_message", None)
+        if scene is not None:  # the geometry first (later changes reach every client)
+            session.box.put_reply(dict(scene))
+        await session.run()
 
     return app
 
@@ -257,6 +272,13 @@ def _api_routes(app: FastAPI, state: _State) -> None:
                    slow_clients=state.hub.slow_clients, model=engine.model,
                    backend=engine.backend)
         return out
+
+    @app.get("/api/scene", response_model=None)
+    async def scene() -> dict[str, Any] | JSONResponse:
+        message = getattr(engine, "scene_message", None)
+        if message is None:
+            return _error(404, "this server has no scene: start it with --scene SCENE.toml")
+        return dict(message)
 
     @app.get("/api/skeleton")
     async def skeleton() -> dict[str, Any]:

@@ -21,6 +21,13 @@ per client in :class:`~emotive.serve.turns.Turns`. At each tick:
 
 Admission: an agent joins only if its client has fewer than ``max_agents_per_client`` in the
 scene and the scene fewer than :meth:`capacity`.
+
+A scene (``--scene``, :class:`~emotive.serve.crowd_engine.CrowdEngine`) adds agents at a point
+with a goal (:class:`~emotive.serve.messages.PlaceAgent`), takes ``set_goal``,
+``add_obstacle`` (every client then gets the new geometry) and ``scene``, and spawns agents
+and lets them leave by its exits on its own: those are taken into the scene's agents after
+each step (:meth:`SceneCommands._take_crowd`), owned by no client. Without a scene those
+commands are refused.
 """
 
 from __future__ import annotations
@@ -37,7 +44,7 @@ from emotive.data.emotion import EmotionSchedule
 from emotive.paths import GroundPath
 from emotive.serve.capacity import StepCosts
 from emotive.serve.errors import MessageError
-from emotive.serve.messages import AddAgent, Command
+from emotive.serve.messages import AddAgent, Command, PlaceAgent
 from emotive.serve.turns import Pending, share
 
 #: Most agents joining at one tick (100 joining took 15 ms on a 2-core machine).
@@ -54,13 +61,18 @@ JOIN_BURST = 0.1
 STATE_PATH_POINTS = 200
 #: Valence and arousal of an agent the scene no longer knows.
 NO_VA = (0.0, 0.0)
+#: Commands only a server with a scene takes.
+SCENE_KINDS = ("scene", "add_obstacle", "set_goal")
 
 
 @dataclass
 class SceneAgent:
-    """What the server knows of an agent beside the engine."""
+    """What the server knows of an agent beside the engine.
 
-    path: GroundPath
+    ``path`` is ``None`` for a crowd agent, which walks where its navigation sends it.
+    """
+
+    path: GroundPath | None
     schedule: EmotionSchedule
     since: float
     pace: float
@@ -187,11 +199,10 @@ class SceneCommands:
             admitted.append(item)
         if not admitted:
             return
-        specs: list[AddAgent] = [item.command.value for item in admitted]
+        specs: list[AddAgent | PlaceAgent] = [item.command.value for item in admitted]
         start = self._clock()
         try:
-            ids = self.engine.add_agents([s.path for s in specs], [s.schedule for s in specs],
-                                         [s.start for s in specs], [s.pace for s in specs])
+            ids = self._engine_add(specs)
         except Exception as exc:  # every failure becomes this message's error reply
             share(admitted, self._clock() - start)
             if len(admitted) == 1:
@@ -207,10 +218,52 @@ class SceneCommands:
         now = self.frames / self.fps
         for agent, spec, item in zip(ids, specs, admitted, strict=True):
             self._emotions += 1
-            self._agents[agent] = SceneAgent(spec.path, spec.schedule, now, spec.pace,
-                                             item.client)
+            self._agents[agent] = SceneAgent(getattr(spec, "path", None), spec.schedule, now,
+                                             spec.pace, item.client)
             self._owned[item.client] = self._owned.get(item.client, 0) + 1
             item.future.set_result({"type": "agent", "id": agent})
+
+    def _engine_add(self, specs: list[AddAgent | PlaceAgent]) -> list[int]:
+        """The engine's ids of new agents: on their paths, or placed with goals (a scene)."""
+        if any(isinstance(s, PlaceAgent) for s in specs):
+            place = getattr(self.engine, "place_agents", None)
+            if place is None:
+                raise MessageError('"at" and "goal" add a crowd agent, which needs a scene: '
+                                   'start the server with --scene SCENE.toml, or give "path"')
+            return place(specs)
+        return self.engine.add_agents([s.path for s in specs], [s.schedule for s in specs],
+                                      [s.start for s in specs], [s.pace for s in specs])
+
+    def _take_crowd(self) -> None:
+        """Take in the agents a scene spawned and forget those that left by its exits."""
+        take = getattr(self.engine, "take_changes", None)
+        if take is None:
+            return
+        joined, left = take()
+        now = self.frames / self.fps
+        for agent, schedule, pace in joined:
+            self._agents[agent] = SceneAgent(None, schedule, now, pace)
+            self._owned[-1] = self._owned.get(-1, 0) + 1
+        for agent in left:
+            info = self._agents.pop(agent, None)
+            if info is not None:
+                self._owned[info.owner] = self._owned.get(info.owner, 1) - 1
+        self._emotions += bool(joined or left)
+
+    def _scene_reply(self, command: Command) -> dict[str, Any]:
+        """The reply to a command of :data:`SCENE_KINDS`."""
+        if getattr(self.engine, "scene_message", None) is None:
+            raise MessageError(f'"{command.kind}" needs a scene: start the server with '
+                               "--scene SCENE.toml")
+        if command.kind == "scene":
+            return dict(self.engine.scene_message)
+        if command.kind == "set_goal":
+            self.engine.set_goal(self._known(command.agent), command.value)
+            return {"type": "ok"}
+        number = self.engine.add_obstacle(command.value)
+        self.sink.notice(None, dict(self.engine.scene_message))
+        return {"type": "obstacle", "index": number,
+                "version": self.engine.scene_message["version"]}
 
     def _known(self, agent: int | None) -> int:
         if agent not in self._agents:
@@ -232,6 +285,8 @@ class SceneCommands:
             rec = self.recorder.stop(client, value)
             return {"type": "recording", "id": rec.rid, "state": "stopped",
                     "frames": rec.frames, "agents": rec.agents}
+        if kind in SCENE_KINDS:
+            return self._scene_reply(command)
         agent = self._known(command.agent)
         info = self._agents[agent]
         if kind == "remove_agent":
@@ -268,16 +323,21 @@ class SceneCommands:
             k = rows.get(agent)
             weights = (frame.emotion[k] if k is not None else info.schedule.at(0.0))
             va = self._va[k] if k is not None and k < len(self._va) else info.schedule.points[0]
-            pts = info.path.points
-            step = max(1, math.ceil(len(pts) / STATE_PATH_POINTS))
-            path = np.vstack((pts[::step], pts[-1:])) if (len(pts) - 1) % step else pts[::step]
             out.append({
                 "id": agent,
                 "emotion": {n: round(float(w), 4) for n, w in zip(labels, weights, strict=True)
                             if w > 1e-4},
                 "valence": round(float(va[0]), 4), "arousal": round(float(va[1]), 4),
-                "pace": info.pace, "path": np.round(path, 3).tolist(),
+                "pace": info.pace,
             })
+            if info.path is None:
+                out[-1].update(self.engine.agent_state(
+                    agent, None if k is None else frame.root[k]))
+                continue
+            pts = info.path.points
+            step = max(1, math.ceil(len(pts) / STATE_PATH_POINTS))
+            path = np.vstack((pts[::step], pts[-1:])) if (len(pts) - 1) % step else pts[::step]
+            out[-1]["path"] = np.round(path, 3).tolist()
             if worker_of is not None:
                 with contextlib.suppress(KeyError):  # its worker was just lost
                     out[-1]["worker"] = worker_of(agent)

@@ -24,7 +24,7 @@ from emotive.core.skeleton import Skeleton
 from emotive.data.emotion import EmotionSchedule
 from emotive.models.gait.agent_inputs import point_labels
 from emotive.models.gait.generate import GaitFrame, GaitGenerator
-from emotive.models.gait.model import load_gait_model
+from emotive.models.gait.model import GaitModel, load_gait_model
 from emotive.paths import GroundPath
 from emotive.serve.errors import ServeError
 
@@ -115,6 +115,13 @@ class Engine:
         return self.generator.step()
 
 
+def gait_rest(model: GaitModel) -> Motion:
+    """The gait rig standing, one frame: the mannequin's bind pose."""
+    c = model.controls
+    return Motion(c.skeleton, np.asarray(c.standing_rotations)[None],
+                  np.asarray(c.standing_positions)[None], model.fps, {"name": "mannequin"})
+
+
 def _gait_engine(backend: str, seed: int) -> Engine:
     model = load_gait_model()
     c = model.controls
@@ -123,9 +130,7 @@ def _gait_engine(backend: str, seed: int) -> Engine:
         step = _optional_module(GAIT_ONNX, "--backend onnx").load_agent_step(model)
     generator = GaitGenerator(model, seed=seed, step=step)
     generator.prepare()  # the traces would otherwise fall in the first measured steps
-    rest = Motion(c.skeleton, np.asarray(c.standing_rotations)[None],
-                  np.asarray(c.standing_positions)[None], model.fps, {"name": "mannequin"})
-    return Engine(generator, c.skeleton, c.mover, rest, "gait", backend,
+    return Engine(generator, c.skeleton, c.mover, gait_rest(model), "gait", backend,
                   point_labels(generator.labels))
 
 

@@ -8,6 +8,13 @@ project's one coercion (:func:`~emotive.data.emotion.coerce_emotion`). Text that
 :func:`~emotive.data.emotion.coerce_emotion` would read as a file name is refused, so a
 client can never make the server open a file. Every problem raises
 :class:`~emotive.serve.errors.MessageError` naming the field and the fix.
+
+The messages of a server with a scene (``--scene``: a crowd navigating an area with
+obstacles) are read here too, whatever the server runs: ``add_agent`` with ``"at"`` and
+``"goal"`` (a :class:`PlaceAgent`), ``set_goal``, ``add_obstacle`` and ``scene``; the
+simulation refuses them without a scene, and a ``path`` agent with one
+(:mod:`~emotive.serve.commands`). Ground points are ``[x, z]`` metres, the scene file's
+``[x, y]``.
 """
 
 from __future__ import annotations
@@ -39,6 +46,10 @@ MAX_PATH_POINTS = 10_000
 #: Most keyframes a schedule may have: each is one emotion to read and blend (75 us each on
 #: the same machine, so 256 take 19 ms, within a frame; 20,000 took 1.5 s).
 MAX_KEYFRAMES = 256
+#: Most points of an agent's goal (waypoints visited in order).
+MAX_GOAL_POINTS = 64
+#: Most corners of an obstacle polygon.
+MAX_POLYGON_POINTS = 256
 #: Rough length in metres of each shape from its size parameters (defaults as the shapes').
 _SHAPE_LENGTH = {
     "circle": lambda k: 2 * math.pi * k.get("radius", 2.0),
@@ -48,7 +59,7 @@ _SHAPE_LENGTH = {
 }
 #: Fields each message type may carry besides ``type`` and ``ref``.
 FIELDS: dict[str, tuple[str, ...]] = {
-    "add_agent": ("path", "emotion", "schedule", "pace", "start"),
+    "add_agent": ("path", "emotion", "schedule", "pace", "start", "at", "goal"),
     "set_emotion": ("id", "emotion", "schedule"),
     "set_path": ("id", "path"),
     "set_target": ("id", "target"),
@@ -58,6 +69,9 @@ FIELDS: dict[str, tuple[str, ...]] = {
     "state": (),
     "start_recording": (),
     "stop_recording": ("id",),
+    "set_goal": ("id", "goal"),
+    "add_obstacle": ("polygon",),
+    "scene": (),
 }
 
 
@@ -68,8 +82,9 @@ class Command:
     Attributes:
         kind: the message type (a key of :data:`FIELDS`).
         agent: the agent id it concerns, or ``None``.
-        value: its checked argument: an :class:`AddAgent`, a schedule, a path, a ``(2,)``
-            target, a pace, a recording id, or ``None``.
+        value: its checked argument: an :class:`AddAgent` or a :class:`PlaceAgent`, a
+            schedule, a path, a ``(2,)`` target, a pace, a recording id, ``(K, 2)`` goal
+            points or obstacle corners, or ``None``.
     """
 
     kind: str
@@ -84,6 +99,23 @@ class AddAgent:
     path: GroundPath
     schedule: EmotionSchedule
     start: float = 0.0
+    pace: float = 1.0
+
+
+@dataclass(frozen=True)
+class PlaceAgent:
+    """A new crowd agent (``--scene``): where it stands and the points it walks to.
+
+    Attributes:
+        at: ``(2,)`` ground point ``[x, z]``, metres.
+        goal: ``(K, 2)`` waypoints, visited in order; it stops at the last.
+        schedule: its emotion schedule.
+        pace: factor on its emotion's walking speed.
+    """
+
+    at: np.ndarray
+    goal: np.ndarray
+    schedule: EmotionSchedule
     pace: float = 1.0
 
 
@@ -268,6 +300,56 @@ def _target(value: Any) -> np.ndarray:
     return np.array([_coordinate(c, "target") for c in value])
 
 
+def _ground_point(value: Any, field: str) -> np.ndarray:
+    """``(2,)`` one ``[x, z]`` point of field ``field``."""
+    if not (isinstance(value, list) and len(value) == 2):
+        raise MessageError(f'"{field}" must be a point [x, z] in metres, got {str(value)[:80]}')
+    return np.array([_coordinate(c, field) for c in value])
+
+
+def _goal(value: Any) -> np.ndarray:
+    """``(K, 2)`` a goal: one point ``[x, z]`` or waypoints ``[[x, z], ...]``."""
+    if isinstance(value, list) and value and all(isinstance(p, list) for p in value):
+        if len(value) > MAX_GOAL_POINTS:
+            raise MessageError(f'"goal" has {len(value)} points, more than the limit of '
+                               f"{MAX_GOAL_POINTS}: send fewer waypoints")
+        return np.stack([_ground_point(p, "goal") for p in value])
+    if value is None:
+        raise MessageError('"goal" is missing: give a point [x, z] or waypoints '
+                           "[[x, z], ...] in metres")
+    return _ground_point(value, "goal")[None]
+
+
+def _ring(value: Any) -> np.ndarray:
+    """``(K, 2)`` an obstacle's corners, at least three (a repeated first corner dropped)."""
+    if not isinstance(value, list) or not all(isinstance(p, list) for p in value):
+        raise MessageError('"polygon" must be the corners [[x, z], ...] of an obstacle in '
+                           "metres, in order around it")
+    if len(value) > MAX_POLYGON_POINTS:
+        raise MessageError(f'"polygon" has {len(value)} corners, more than the limit of '
+                           f"{MAX_POLYGON_POINTS}: draw a simpler obstacle")
+    pts = [_ground_point(p, "polygon") for p in value]
+    if len(pts) > 1 and np.array_equal(pts[0], pts[-1]):
+        pts.pop()
+    if len({tuple(p) for p in pts}) < 3:
+        raise MessageError(f'"polygon" has {len(pts)} distinct corner(s): an obstacle needs at '
+                           "least 3 around an area")
+    return np.stack(pts)
+
+
+def _place_agent(message: Mapping[str, Any], labels: Sequence[str],
+                 points_over: Sequence[str] | None) -> PlaceAgent:
+    both = {"path", "start"} & set(message)
+    if both:
+        raise MessageError(f'add_agent takes "at" and "goal" (a crowd agent) or "path", not '
+                           f"both: drop {', '.join(sorted(both))}")
+    if "at" not in message:
+        raise MessageError('add_agent with "goal" needs "at", the point [x, z] it starts from')
+    return PlaceAgent(_ground_point(message["at"], "at"), _goal(message.get("goal")),
+                      parse_emotion(message, labels, "neutral", points_over),
+                      _pace(message.get("pace", 1.0)))
+
+
 def to_command(message: Mapping[str, Any], labels: Sequence[str],
                points_over: Sequence[str] | None = None) -> Command:
     """The simulation command of a parsed control message (any type but ``ping``).
@@ -286,12 +368,16 @@ def to_command(message: Mapping[str, Any], labels: Sequence[str],
     if unknown:
         raise MessageError(f"{kind} has no field {', '.join(sorted(map(str, unknown)))}; its "
                            f"fields: {', '.join(FIELDS[kind]) or 'none'}")
+    if kind == "add_agent" and ("at" in message or "goal" in message):
+        return Command(kind, None, _place_agent(message, labels, points_over))
     if kind == "add_agent":
         return Command(kind, None, AddAgent(
             parse_path(message.get("path")), parse_emotion(message, labels, "neutral", points_over),
             _number(message.get("start", 0.0), "start"), _pace(message.get("pace", 1.0))))
-    if kind in ("state", "start_recording"):
+    if kind in ("state", "start_recording", "scene"):
         return Command(kind)
+    if kind == "add_obstacle":
+        return Command(kind, None, _ring(message.get("polygon")))
     if kind == "stop_recording":
         rid = message.get("id")
         if rid is not None and (isinstance(rid, bool) or not isinstance(rid, int)):
@@ -308,4 +394,6 @@ def to_command(message: Mapping[str, Any], labels: Sequence[str],
         return Command(kind, agent, _target(message.get("target")))
     if kind == "set_pace":
         return Command(kind, agent, _pace(message.get("pace")))
+    if kind == "set_goal":
+        return Command(kind, agent, _goal(message.get("goal")))
     return Command(kind, agent)

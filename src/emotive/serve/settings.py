@@ -65,7 +65,12 @@ class ServeSettings:
         model: ``"gait"`` (the main network) or ``"fcrbm"``.
         backend: ``"torch"`` or ``"onnx"`` (the gait agents' whole exported step,
             ``emotive export onnx --step agent``, on ONNX Runtime).
-        seed: seed of the agents' starting phases.
+        seed: seed of the agents' starting phases (and, with a scene, of every random
+            choice of its crowd).
+        scene: a scene file (``scene.toml``, ``docs/crowd.md``): the server runs its crowd
+            (:mod:`~emotive.serve.crowd_engine`), whose groups spawn and navigate, on the
+            gait network (torch) in the simulation thread; ``None``: no scene, agents walk
+            paths.
         workers: processes that step the scene's agents, each its share (1: the server's
             own simulation thread steps them all, in its process).
         worker_kind: with ``workers`` above 1, what a worker is: ``"threads"`` (threads of
@@ -112,6 +117,7 @@ class ServeSettings:
     model: str = "gait"
     backend: str = "torch"
     seed: int = 0
+    scene: str | None = None
     workers: int = 1
     worker_kind: str = "auto"
     step_budget: float = 0.5
@@ -144,7 +150,8 @@ class ServeSettings:
 
         Raises:
             ServeError: a non-loopback host without a token, an unknown model or backend, a
-                port outside 0-65535, or a limit that is not a positive number.
+                scene with another model, backend or more workers than one, a port outside
+                0-65535, or a limit that is not a positive number.
         """
         token = self.token or None
         if not is_loopback(self.host) and token is None:
@@ -161,6 +168,13 @@ class ServeSettings:
         if self.backend == "onnx" and self.model != "gait":
             raise ServeError(f"--backend onnx runs the gait network only; drop it or use "
                              f"--model gait (got --model {self.model})")
+        if self.scene is not None and (self.model, self.backend) != ("gait", "torch"):
+            raise ServeError(f"--scene runs its crowd on the gait network on torch; drop "
+                             f"--model {self.model} --backend {self.backend}")
+        if self.scene is not None and self.workers != 1:
+            raise ServeError(f"--scene steps its crowd in the simulation thread (navigation "
+                             f"sees every agent at once); drop --workers {self.workers} or give "
+                             "--workers 1")
         if isinstance(self.workers, bool) or not isinstance(self.workers, int) \
                 or not 1 <= self.workers <= 64:
             raise ServeError(f"--workers must be a whole number 1-64, got {self.workers!r} "

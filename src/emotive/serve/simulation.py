@@ -289,6 +289,7 @@ class Simulation(SceneCommands):
             log.exception("the engine failed to step; the scene holds its last frame")
             frame = self._last
         self._check_lost()
+        self._take_crowd()
         for agent, path in getattr(self.engine, "take_paths", list)():
             if agent in self._agents:
                 self._agents[agent].path = path

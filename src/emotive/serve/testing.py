@@ -33,6 +33,7 @@ def running_server(**settings: Any) -> Iterator[str]:
         **settings: any field of :class:`~emotive.serve.settings.ServeSettings` but ``host``
             and ``port`` (always ``127.0.0.1`` and a free port): ``token``, ``model``
             (``"gait"``, ``"fcrbm"``), ``backend`` (``"torch"``, ``"onnx"``), ``seed``,
+            ``scene`` (a scene file: its crowd, ``--scene``),
             ``max_agents`` (500), ``max_agents_per_client`` (200), ``max_message_bytes``
             (1,000,000), ``max_depth`` (64), ``max_values`` (25,000), ``rate`` (100
             messages/s), ``burst`` (200), ``server_rate`` (500 messages/s),

@@ -2,19 +2,25 @@
 
 The folder holds everything the page needs and nothing it must fetch elsewhere:
 
-===========================  ==========================================================
-``index.html``, ``*.js``     the page (:data:`PAGE`): the engine loop of ``docs/runtime.md``
-                             on onnxruntime-web, the scene, the controls, the test hook
-``scene-setup.js``, ...      the served app's view, figures, mouse input, cameras, panel,
-                             emotion controls and WebXR buttons (:data:`SHARED`, copied
-                             from ``emotive/serve/static``)
-``vendor/three/``            three.js, as the served app vendors it
-``vendor/onnxruntime-web/``  onnxruntime-web's WebAssembly build, its licence and notices
-                             (:data:`RUNTIME_SOURCE`, from ``emotive/assets``)
-``agent.onnx``               the whole agent step (:func:`export_agent_step`)
-``agent.json``               the step's metadata, the rig and the emotion points
-``mannequin.glb``            the skinned mannequin of the served app's ``/api/mannequin.glb``
-===========================  ==========================================================
+==============================  ==========================================================
+``index.html``, ``*.js``        the page (:data:`PAGE`): the engine loop of ``docs/runtime.md``
+                                on onnxruntime-web, the scene, the controls, the test hook
+``scene-setup.js``, ...         the served app's view, figures, mouse input, cameras, panel,
+                                emotion controls and WebXR buttons (:data:`SHARED`, copied
+                                from ``emotive/serve/static``)
+``vendor/three/``               three.js, as the served app vendors it
+``vendor/onnxruntime-web/``     onnxruntime-web's WebAssembly build, its licence and notices
+                                (:data:`RUNTIME_SOURCE`, from ``emotive/assets``)
+``vendor/recast-navigation/``   recast-navigation's ES modules and WebAssembly build (Recast
+                                and Detour), its licences (:data:`RECAST_SOURCE`); the page
+                                loads its WebAssembly only for a scene
+``agent.onnx``                  the whole agent step (:func:`export_agent_step`)
+``agent.json``                  the step's metadata, the rig and the emotion points
+``mannequin.glb``               the skinned mannequin of the served app's ``/api/mannequin.glb``
+``scene.json``                  with a crowd scene only: what the page needs to run it
+                                (:func:`~emotive.web.scene.scene_document`); ``agent.json``
+                                then names it under ``scene``
+==============================  ==========================================================
 
 The folder appears whole or not at all: it is written beside ``out`` under a temporary name
 and renamed into place.
@@ -36,6 +42,7 @@ import numpy as np
 
 from emotive.core import Motion
 from emotive.crowd.emotion_table import navigation_table
+from emotive.crowd.scene import Scene
 from emotive.data.circumplex import VA_KERNEL_WIDTH, label_points
 from emotive.errors import ConfigError, OutputError
 from emotive.io.atomic import output_error
@@ -44,6 +51,7 @@ from emotive.models.gait.agent_inputs import point_labels
 from emotive.models.gait.model import GaitModel
 from emotive.models.gait.step_export import STEP_INPUTS, STEP_OUTPUTS, export_agent_step
 from emotive.models.gait.step_runtime import read_step_metadata
+from emotive.web.scene import SCENE_FILE, scene_document
 
 #: ``format`` of ``agent.json``.
 WEB_FORMAT = "emotive-web/1"
@@ -59,6 +67,9 @@ SHARED: tuple[str, ...] = ("app.css", "scene-setup.js", "ground-input.js", "agen
 RUNTIME = "vendor/onnxruntime-web"
 #: The vendored runtime in the package (with the package's other large files).
 RUNTIME_SOURCE = Path(__file__).parents[1] / "assets" / "onnxruntime-web"
+#: Where the export puts recast-navigation, and where the package keeps it.
+RECAST = "vendor/recast-navigation"
+RECAST_SOURCE = Path(__file__).parents[1] / "assets" / "recast-navigation"
 #: Names of the generated files.
 GRAPH, METADATA, MANNEQUIN = "agent.onnx", "agent.json", "mannequin.glb"
 #: Metadata entries of the graph that hold JSON.
@@ -76,6 +87,8 @@ class WebExport:
         total_bytes: their size.
         graph_bytes: the size of ``agent.onnx``.
         runtime_bytes: the size of the vendored onnxruntime-web.
+        scene_agents: agents the scene spawns (a flow without a count: 0), or ``None``
+            without a scene.
     """
 
     folder: Path
@@ -83,6 +96,7 @@ class WebExport:
     total_bytes: int
     graph_bytes: int
     runtime_bytes: int
+    scene_agents: int | None = None
 
 
 def _size(folder: Path) -> tuple[int, int]:
@@ -201,14 +215,18 @@ def _copy(src: Path, dest: Path) -> None:
             shutil.copy2(item, target)
 
 
-def _write(model: GaitModel, work: Path) -> None:
-    """Every file of the export into ``work``."""
+def _write(model: GaitModel, work: Path, scene: dict[str, Any] | None) -> None:
+    """Every file of the export into ``work``; ``scene``: the content of ``scene.json``."""
     _copy(PAGE, work)
     _copy(RUNTIME_SOURCE, work / RUNTIME)
+    _copy(RECAST_SOURCE, work / RECAST)
     for name in SHARED:
         _copy(SERVE_STATIC / name, work / name)
     export_agent_step(model, work / GRAPH)
     meta = web_metadata(model, read_step_metadata(work / GRAPH))
+    if scene is not None:
+        meta["scene"] = SCENE_FILE
+        (work / SCENE_FILE).write_text(json.dumps(scene) + "\n", encoding="utf-8")
     (work / METADATA).write_text(json.dumps(meta, indent=1) + "\n", encoding="utf-8")
     (work / MANNEQUIN).write_bytes(mannequin_glb(model))
     for path in work.rglob("*"):
@@ -234,13 +252,16 @@ def _replace(work: Path, out: Path) -> None:
         shutil.rmtree(old, ignore_errors=True)
 
 
-def export_web(model: GaitModel, out: str | os.PathLike, force: bool = False) -> WebExport:
+def export_web(model: GaitModel, out: str | os.PathLike, force: bool = False,
+               scene: Scene | None = None) -> WebExport:
     """Write the static folder of the browser runtime for ``model``'s agents.
 
     Args:
         model: the gait model whose whole step the page runs.
         out: the folder to write (made; its parent must exist).
         force: replace ``out`` when it holds a previous export.
+        scene: a crowd scene (:func:`~emotive.crowd.scene.load_scene`) the page runs with
+            recast-navigation's Detour crowd; ``None``: the page starts empty, as without.
 
     Returns:
         What was written.
@@ -248,17 +269,20 @@ def export_web(model: GaitModel, out: str | os.PathLike, force: bool = False) ->
     Raises:
         OutputError: see :func:`check_web_folder`, or the disk refused a write (nothing is
             left behind).
-        ConfigError: a file of the page is missing from this installation.
+        ConfigError: a file of the page is missing from this installation, or a scene
+            without shapely (the crowd extra).
+        SceneError: the scene's geometry, or an emotion the model does not know.
         OnnxUnavailableError: ``onnx`` is not installed.
     """
     out = Path(out).expanduser().absolute()
     check_web_folder(out, force)
+    document = None if scene is None else scene_document(scene, model.labels)
     try:
         work = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
     except OSError as exc:
         raise output_error(out, exc) from exc
     try:
-        _write(model, work)
+        _write(model, work, document)
         files, total = _size(work)
         graph = (work / GRAPH).stat().st_size
         runtime = _size(work / RUNTIME)[1]
@@ -269,4 +293,5 @@ def export_web(model: GaitModel, out: str | os.PathLike, force: bool = False) ->
         with contextlib.suppress(OSError):
             if work.exists():
                 shutil.rmtree(work)
-    return WebExport(out, files, total, graph, runtime)
+    agents = None if scene is None else sum(g.count for g in scene.groups)
+    return WebExport(out, files, total, graph, runtime, agents)

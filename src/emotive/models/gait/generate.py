@@ -212,6 +212,7 @@ class GaitGenerator:
         self._next_id = 0
         self._agents: dict[int, _Agent] = {}
         self._order: list[int] = []
+        self._where: dict[int, int] | None = None
         self._paths = PathBank()
         self._batch = empty_batch(self.network.initial_state(0, dtype=dtype),
                                   self.graph.layout.size, len(self.labels), dtype)
@@ -290,7 +291,7 @@ class GaitGenerator:
         schedules = [to_model_schedule(e, self.labels) for e in emotions]
         ids = list(range(self._next_id, self._next_id + n))
         m = np.stack([sch.at(0.0) for sch in schedules]) if n else np.zeros((0, len(self.labels)))
-        slots = np.array([self._paths.add(path) for path in paths], dtype=np.int64)
+        slots = np.array(self._paths.add_many(paths), dtype=np.int64)
         new = AgentBatch(self.network.initial_state(n, dtype=self.dtype),
                          torch.zeros(n, self.graph.layout.size, dtype=self.dtype), m,
                          np.asarray(starts, dtype=np.float64), np.zeros(n), slots,
@@ -313,6 +314,7 @@ class GaitGenerator:
         for a, path, sch in zip(ids, paths, schedules, strict=True):
             self._agents[a] = _Agent(path, sch, 0.0, len(sch.times) == 1)
         self._order.extend(ids)
+        self._where = None
         self._batch = joined(self._batch, new)
         return ids
 
@@ -327,6 +329,7 @@ class GaitGenerator:
         self._batch = kept(self._batch, np.delete(np.arange(len(self._order)), k))
         del self._order[k]
         del self._agents[agent]
+        self._where = None
 
     def set_emotion(self, agent: int, emotion: EmotionLike) -> None:
         """Give an agent a new emotion or schedule; a schedule's time 0 is now.
@@ -344,16 +347,49 @@ class GaitGenerator:
         """Send an agent along another path from its nearest point.
 
         The agent does not jump: the gap to the new path closes as it walks
-        (:data:`PATH_MERGE_SLOPE`).
+        (:data:`PATH_MERGE_SLOPE`). For many agents at once, :meth:`set_paths`.
 
         Raises:
             KeyError: unknown agent. PathError: not a path.
         """
-        if not isinstance(path, GroundPath):
-            raise PathError(f"an agent needs a GroundPath to follow, got {type(path).__name__}")
-        k = self._index(agent)
-        arc, _ = path.nearest(self._ground(k)[None])
-        self._follow(agent, k, path, float(arc[0]))
+        self.set_paths([agent], [path])
+
+    def set_paths(self, agents: Sequence[int], paths: Sequence[GroundPath]) -> None:
+        """Send each of ``agents`` along its entry of ``paths``, from its nearest point.
+
+        The same as :meth:`set_path` for each pair in turn (an agent named twice takes its
+        last path), in one batch: the paths enter the path bank together
+        (:meth:`PathBank.add_many <emotive.paths.bank.PathBank.add_many>`) and the nearest
+        points are found over all of them at once (:meth:`PathBank.nearest
+        <emotive.paths.bank.PathBank.nearest>`), so a crowd that gives every agent a new
+        path each frame pays a few array operations, not a few per agent.
+
+        Raises:
+            ValueError: not one path per agent. KeyError: an unknown agent. PathError: not a
+            path. Nothing is changed when any of these is raised.
+        """
+        if len(agents) != len(paths):
+            raise ValueError(f"set_paths: give one path per agent, got {len(agents)} agents "
+                             f"and {len(paths)} paths")
+        for path in paths:
+            if not isinstance(path, GroundPath):
+                raise PathError(f"an agent needs a GroundPath to follow, got "
+                                f"{type(path).__name__}")
+        last: dict[int, int] = {}
+        for i, agent in enumerate(agents):
+            last[agent] = i
+        if not last:
+            return
+        k = np.array([self._index(a) for a in last], dtype=np.int64)
+        chosen = [paths[i] for i in last.values()]
+        b, bank = self._batch, self._paths
+        ground = self._grounds(k)
+        for slot in b.slot[k]:
+            bank.release(int(slot))
+        b.slot[k] = bank.add_many(chosen)
+        b.arc[k] = bank.nearest(b.slot[k], ground)
+        for agent, path in zip(last, chosen, strict=True):
+            self._agents[agent].path = path
 
     def set_target(self, agent: int, xz: Sequence[float]) -> GroundPath:
         """Send an agent to a ground point ``(x, z)`` (metres) and stop it there.
@@ -398,9 +434,12 @@ class GaitGenerator:
 
     def _ground(self, k: int) -> np.ndarray:
         """``(2,)`` where agent ``k`` (batch index) stands."""
-        rows = self._batch.rows[k:k + 1]
-        layout = self.graph.layout
-        return np.array([float(layout.field(rows, "x")[0]), float(layout.field(rows, "z")[0])])
+        return self._grounds(np.array([k]))[0]
+
+    def _grounds(self, k: np.ndarray) -> np.ndarray:
+        """``(K, 2)`` where agents ``k`` (``(K,)`` batch indices) stand, ``(x, z)`` metres."""
+        columns = [self.graph.layout.slices[name].start for name in ("x", "z")]
+        return self._batch.rows.numpy()[np.ix_(k, columns)].astype(np.float64)
 
     def _follow(self, agent: int, k: int, path: GroundPath, arc: float) -> None:
         """Put agent ``agent`` (batch index ``k``) on ``path`` at ``arc``.
@@ -414,9 +453,12 @@ class GaitGenerator:
         self._agents[agent].path = path
 
     def _index(self, agent: int) -> int:
+        """Agent ``agent``'s batch index (from a map made again after adds and removals)."""
+        if self._where is None:
+            self._where = {a: k for k, a in enumerate(self._order)}
         try:
-            return self._order.index(agent)
-        except ValueError:
+            return self._where[agent]
+        except KeyError:
             raise KeyError(f"no live agent with id {agent}; live agents: {self._order}") from None
 
     # ----------------------------------------------------------------------------- starts

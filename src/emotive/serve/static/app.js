@@ -1,9 +1,12 @@
 // The browser app of `emotive serve`: the shared scene of walking agents on a ground grid,
 // with tools to place agents, draw their paths and change their emotions live, stick or
-// mannequin figures, fixed and follow cameras, recording, and WebXR AR/VR.
+// mannequin figures, fixed and follow cameras, recording, and WebXR AR/VR. A server started
+// with --scene sends its geometry when the page joins: the area, obstacles and the groups'
+// spawn and goal areas are drawn on the ground, and the path tools give way to dropping
+// agents with a goal and drawing obstacles (scene-view.js, scene-tools.js).
 //
-// URL parameters: `?demo=1` fills an empty scene with four walking agents; `?token=T` is passed
-// on to the websocket and every API call (servers started with --token).
+// URL parameters: `?demo=1` fills an empty scene with four walking agents (not with a scene);
+// `?token=T` is passed on to the websocket and every API call (servers started with --token).
 //
 // window.emotive is a read-only view of the app's state, for tests and the console:
 //   ready             true once the rig, the figures and the socket are set up
@@ -24,16 +27,30 @@
 //   toScreen(x, z)    page coordinates [px, py] of the ground point (x, z)
 //   errors            the messages shown as error toasts so far
 //   renderFps, streamFps, latencyMs   the numbers shown in the panel
+//   mouseMode         "place" or "draw"; with a scene "place" (select), "agent" or "obstacle"
+//   scene             the latest scene message of a server with --scene, or null
+//   sceneDrawn()      what the view draws of it, read back from the lines on the ground:
+//                     {version, area: [[x, z], ...], obstacles: [[[x, z], ...], ...],
+//                     spawns: [...], goals: [...]} (goals: the exit areas)
+//   draftObstacle     the corners of the obstacle being drawn, [[x, z], ...]
+//   dropStart         where the agent being dropped stands, [x, z], or null
+//   dropEmotion       the emotion a dropped agent gets (the emotion controls, no selection)
+//   colors()          {background, ground, figures: {id: [...]}}: the colours drawn, "#rrggbb"
+//                     (the scene's background, the ground's material, each agent's shown
+//                     figure's materials)
 
 import { Connection, socketUrl, throttled } from "./protocol.js";
 import { Rig } from "./rig.js";
 import { LabelSliders, MAIN_LABELS, ValenceArousalDisc, weightsText } from "./emotion-controls.js";
 import { createView } from "./scene-setup.js";
+import { SceneDrawing } from "./scene-view.js";
+import { SceneTools } from "./scene-tools.js";
 import { listenToGround, round } from "./ground-input.js";
 import { AgentFigures, dropUnseen, figuresOf, loadMannequin } from "./agent-figures.js";
 import { FollowCamera } from "./follow-camera.js";
 import {
-  AgentList, Rates, cameraButtons, figureButtons, mouseModeButtons, sticksOnly, toaster,
+  AgentList, Rates, cameraButtons, collapsiblePanel, figureButtons, mouseModeButtons, sticksOnly,
+  toaster,
 } from "./panel.js";
 
 const params = new URLSearchParams(location.search);
@@ -95,6 +112,8 @@ const app = {
   ready: false,
   renderFps: 0,
   streamFps: 0,
+  scene: null,
+  dropEmotion: "neutral",
 };
 
 /** One agent of the scene: its figures, placement and emotion in the latest frame. */
@@ -150,13 +169,16 @@ const sendEdit = throttled(({ id, emotion }) => {
 
 const disc = new ValenceArousalDisc($("va-disc"), (va) => {
   if (app.selected !== null) sendEdit({ id: app.selected, emotion: va });
+  else if (app.mouseMode === "agent") app.dropEmotion = va;
 });
 let sliders = null;
 
 function onSliders(weights) {
   const total = Object.values(weights).reduce((a, b) => a + b, 0);
   // All-zero weights name no emotion: wait for a non-zero one.
-  if (app.selected !== null && total > 0) sendEdit({ id: app.selected, emotion: weightsText(weights) });
+  if (total === 0) return;
+  if (app.selected !== null) sendEdit({ id: app.selected, emotion: weightsText(weights) });
+  else if (app.mouseMode === "agent") app.dropEmotion = weightsText(weights);
 }
 
 async function showSelectedPath() {
@@ -175,10 +197,12 @@ function select(id) {
   const agent = id === null ? null : app.agents.get(id);
   $("selected-name").textContent = agent ? `Agent ${id}` : "none";
   $("remove-agent").disabled = !agent;
-  disc.enabled = Boolean(agent);
+  // Without a selection, in the drop-agent mode, the controls choose the new agents' emotion.
+  const dropping = !agent && app.mouseMode === "agent";
+  disc.enabled = Boolean(agent) || dropping;
   disc.reset();
   if (agent) disc.show(agent.va);
-  if (sliders) sliders.set(agent?.weights, Boolean(agent));
+  if (sliders) sliders.set(agent?.weights, Boolean(agent) || dropping);
   agentList.mark(id);
   showDownloads();
   showSelectedPath();
@@ -213,12 +237,60 @@ async function onPathDrawn(points) {
 
 listenToGround(view, app, app.agents, {
   select,
-  place: (x, z) => addAgent({ shape: "circle", center: [x, z], radius: PLACED_RADIUS }),
+  // With a scene, a click on the ground only drops the selection (agents navigate).
+  place: (x, z) => (app.scene ? select(null)
+    : addAgent({ shape: "circle", center: [x, z], radius: PLACED_RADIUS })),
   drawn: onPathDrawn,
 });
 
+// --- a scene: its geometry on the ground, the drop-agent and obstacle tools ---------------
+
+const sceneDrawing = new SceneDrawing(view.world);
+const sceneTools = new SceneTools(view, sceneDrawing, app, {
+  request: ask,
+  emotion: () => app.dropEmotion,
+  modeChanged: (mode) => {
+    if (mode === "agent") app.dropEmotion = "neutral";
+    select(null);
+  },
+});
+
+/**
+ * Look at the whole area from above its near side (the fixed camera's place too), its middle
+ * in the middle of the part of the page the panel leaves free.
+ */
+function frameScene() {
+  const b = sceneDrawing.bounds();
+  const cz = (b.minZ + b.maxZ) / 2;
+  const d = Math.max(8, 1.25 * Math.max(b.maxX - b.minX, b.maxZ - b.minZ));
+  const { camera } = view;
+  // Metres across the view at the area's middle; the panel covers its left `covered` share.
+  const across = 2 * Math.hypot(0.65 * d, d) * Math.tan((camera.fov * Math.PI) / 360) * camera.aspect;
+  const covered = $("panel").getBoundingClientRect().right / window.innerWidth;
+  const cx = (b.minX + b.maxX) / 2 - (covered / 2) * across;
+  camera.position.set(cx, 0.65 * d, cz + d);
+  view.controls.target.set(cx, 0, cz);
+  view.controls.update();
+  view.fixedView.position.copy(view.camera.position);
+  view.fixedView.target.copy(view.controls.target);
+}
+
+/** A server message that answers no request: the scene's geometry (on joining, on changes). */
+function onNotice(message) {
+  if (message.type !== "scene") return;
+  const first = app.scene === null;
+  app.scene = message;
+  sceneDrawing.show(message);
+  if (first) {
+    frameScene();
+    sceneTools.enable();
+  }
+}
+
 // --- toggles ----------------------------------------------------------------------------
 
+// With a scene, collapsing or expanding the panel frames the area again beside it.
+collapsiblePanel(() => { if (app.scene && app.cameraMode === "fixed") frameScene(); });
 mouseModeButtons(app, view);
 figureButtons(app, app.agents);
 cameraButtons(app, cameras, app.agents, select);
@@ -281,7 +353,8 @@ const DEMO_AGENTS = [
 
 async function startDemo() {
   const state = await app.connection.request({ type: "state" });
-  if (state.agents.length) return;
+  // A scene (its message comes before any reply) has agents of its own, and no paths.
+  if (state.agents.length || app.scene) return;
   for (const agent of DEMO_AGENTS) await app.connection.request({ type: "add_agent", ...agent });
 }
 
@@ -337,6 +410,17 @@ window.emotive = Object.freeze({
   get renderFps() { return app.renderFps; },
   get streamFps() { return app.streamFps; },
   get latencyMs() { return app.connection?.latencyMs ?? null; },
+  get mouseMode() { return app.mouseMode; },
+  get scene() { return app.scene && structuredClone(app.scene); },
+  sceneDrawn: () => sceneDrawing.drawn(),
+  get draftObstacle() { return sceneTools.corners.map((p) => [...p]); },
+  get dropStart() { return sceneTools.start && [...sceneTools.start]; },
+  get dropEmotion() { return structuredClone(app.dropEmotion); },
+  colors: () => ({
+    background: `#${view.scene.background.getHexString()}`,
+    ground: `#${view.floor.children[0].material.color.getHexString()}`,
+    figures: Object.fromEntries([...app.agents].map(([id, a]) => [id, a.materialColors()])),
+  }),
 });
 
 // --- start --------------------------------------------------------------------------------
@@ -350,6 +434,7 @@ function connect() {
   app.connection = new Connection(socketUrl(token), {
     rig: app.rig,
     onFrame,
+    onNotice,
     onError: toast,
     onOpen: () => status("connected"),
     onClose: (code) => {

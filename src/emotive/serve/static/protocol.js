@@ -123,14 +123,16 @@ export function socketUrl(token, encoding = ENCODING) {
  * A websocket connection to the server.
  *
  * Callbacks: `onFrame(frame)` for each decoded frame, `onError(text)` for error replies and
- * undecodable frames, `onOpen()` once it is open, `onClose(code)` when it closes. `rig`
- * (a Rig of /api/skeleton) gives version-2 frames their world positions.
+ * undecodable frames, `onNotice(message)` for every other message that answers no request
+ * (such as a scene's geometry), `onOpen()` once it is open, `onClose(code)` when it closes.
+ * `rig` (a Rig of /api/skeleton) gives version-2 frames their world positions.
  */
 export class Connection {
-  constructor(url, { onFrame, onError, onOpen, onClose, rig = null }) {
+  constructor(url, { onFrame, onError, onOpen, onClose, onNotice = () => {}, rig = null }) {
     this.url = url;
     this.rig = rig;
     this.onFrame = onFrame;
+    this.onNotice = onNotice;
     this.onError = onError;
     this.onOpen = onOpen;
     this.onClose = onClose;
@@ -181,6 +183,7 @@ export class Connection {
       else waiting.done(msg);
     }
     if (msg.type === "error") this.onError(msg.message);
+    else if (!waiting && msg.type !== "pong") this.onNotice(msg);
   }
 
   get isOpen() {

@@ -4,7 +4,9 @@
 // No emotive server: any static file server of the exported folder will do.
 //
 // URL parameters: `?demo=1` starts with four walking agents; `?paused=1` starts with the
-// clock stopped (the agents step only through the test hook or the Pause button).
+// clock stopped (the agents step only through the test hook or the Pause button). With a
+// scene (exported with --scene, crowd.js): `?avoidance=0` runs it with navigation agents
+// that do not see each other (the baseline), `?seed=N` seeds its random draws (default 0).
 //
 // window.emotiveWeb (hook.js) is a read-only view of the page's state for tests and the
 // console, with the test functions that feed the page the inputs a test feeds Python.
@@ -22,6 +24,8 @@ import { installHook } from "./hook.js";
 import { GroundPath, circlePath, waypointPath } from "./paths.js";
 import { emotionWeights, pointOf, weightsFromPoint, weightsObject } from "./emotion.js";
 import { RuntimeError, loadMetadata, loadRuntime, requireWasmSimd } from "./runtime.js";
+import { CrowdRunner, loadSceneDocument } from "./crowd.js";
+import { drawScene } from "./crowd-view.js";
 
 const params = new URLSearchParams(location.search);
 
@@ -39,7 +43,7 @@ const cameras = new FollowCamera(view);
 const lock = new Lock();
 
 const app = {
-  meta: null, engine: null, ort: null, session: null, template: null,
+  meta: null, engine: null, crowd: null, ort: null, session: null, template: null,
   status: "loading", error: null, ready: false, running: params.get("paused") !== "1",
   figureMode: "mannequin", cameraMode: "fixed", mouseMode: "place",
   views: new Map(), selected: null, drawnPath: [], shownFrame: null,
@@ -191,6 +195,11 @@ setRunning(app.running);
 
 // --- the clock: fixed steps at the model's frame rate ----------------------------------------
 
+/** One frame: the scene's crowd when there is one (it steps the engine), else the engine. */
+function advance() {
+  return app.crowd ? app.crowd.step() : app.engine.step();
+}
+
 let backlog = 0;
 let lastTick = performance.now();
 
@@ -204,7 +213,7 @@ async function tick() {
   lastTick = now;
   try {
     while (app.running && backlog >= h) {
-      await engine.step();
+      await advance();
       backlog -= h;
     }
   } catch (err) {
@@ -246,7 +255,7 @@ function everySecond() {
 
 // --- the hook for tests and the console ----------------------------------------------------------
 
-installHook({ app, view, errors, lock, running, setRunning });
+installHook({ app, view, errors, lock, running, setRunning, advance });
 
 // --- start ---------------------------------------------------------------------------------------
 
@@ -281,9 +290,18 @@ async function start() {
   Object.assign(app, { ort, session, template });
   if (!template) sticksOnly(app);
   app.engine = new AgentEngine(ort, session, meta.step, lock);
+  let scene = "";
+  if (meta.scene) {
+    const doc = await loadSceneDocument(meta.scene);
+    drawScene(view, doc);
+    app.crowd = await CrowdRunner.create(doc, meta, app.engine, {
+      avoidance: params.get("avoidance") !== "0", seed: Number(params.get("seed") ?? 0),
+    });
+    scene = `; scene ${doc.name}${app.crowd.avoidance ? "" : " without avoidance"}`;
+  }
   app.status = "running";
   app.ready = true;
-  $("stat-status").textContent = `running: ${meta.emotion.labels.length} emotions, ${meta.step.fps} fps`;
+  $("stat-status").textContent = `running: ${meta.emotion.labels.length} emotions, ${meta.step.fps} fps${scene}`;
   tick();
   if (params.get("demo") === "1") startDemo();
 }

@@ -14,8 +14,15 @@
 //   stepMs, stepsPerSecond, renderFps, framesRendered   the numbers of the panel
 //   selected, figureMode, cameraMode, drawnPath, running, toScreen(x, z), boundBones(id)
 //   test.addAgents(specs)  agents on polylines, see addTestAgents; resolves with their ids
-//   test.step(n)         step n frames now, whatever the clock does; resolves with
-//                        framesStepped
+//   test.step(n)         step n frames now (the scene's crowd with its bodies, when there is
+//                        one), whatever the clock does; resolves with framesStepped
+//   crowd                with a scene (crowd.js), else null: summary() {frame, done,
+//                        avoidance, seed, agents, spawned, left, reached, navMeshMs, updateMs,
+//                        name}; agents() one row per agent that ever was (id, group, goal,
+//                        finished, left, firstFrame, lastFrame, pace, emotion, speed);
+//                        frames(from) the records of each frame from `from` on: {frame, ids,
+//                        hips [x, z, ...] (each body's hips on the ground), nav [x, z, ...]
+//                        (its navigation agent after Detour's update), warm [0/1, ...]}
 //   test.pause(), test.resume(), test.removeAll(), test.setEmotion(id, emotion)
 //   test.benchmark(batch, frames)  milliseconds of each session.run of `batch` agents (a
 //                        separate engine on the same session, nothing drawn)
@@ -28,9 +35,10 @@ import { emotionWeights } from "./emotion.js";
  * Install window.emotiveWeb.
  *
  * @param {object} deps the page's `app` state, its `view`, its `errors` list, the session's
- *   `lock`, `running()` (the engine or null after a toast) and `setRunning(on)`.
+ *   `lock`, `running()` (the engine or null after a toast), `setRunning(on)` and `advance()`
+ *   (one frame of the page: the crowd's or the engine's).
  */
-export function installHook({ app, view, errors, lock, running, setRunning }) {
+export function installHook({ app, view, errors, lock, running, setRunning, advance }) {
   /**
    * Add agents on polylines: `specs` [{points: [[x, z], ...], closed, emotion, phase, pace,
    * arc}], emotion (C,) weights, {label: weight} or a label; the points are the dense
@@ -61,7 +69,7 @@ export function installHook({ app, view, errors, lock, running, setRunning }) {
     addAgents: addTestAgents,
     async step(n) {
       const engine = running();
-      for (let k = 0; k < n && engine; k++) await engine.step();
+      for (let k = 0; k < n && engine; k++) await advance();
       return engine?.frames ?? 0;
     },
     pause: () => setRunning(false),
@@ -113,6 +121,14 @@ export function installHook({ app, view, errors, lock, running, setRunning }) {
     get running() { return app.running; },
     toScreen: (x, z) => view.toScreen(x, z),
     boundBones: (id) => app.views.get(id)?.mannequin?.boundBones ?? 0,
+    get crowd() {
+      const crowd = app.crowd;
+      return crowd && Object.freeze({
+        summary: () => crowd.summary(),
+        agents: () => crowd.agentTable(),
+        frames: (from = 0) => crowd.framesSince(from),
+      });
+    },
     test,
   });
 }
