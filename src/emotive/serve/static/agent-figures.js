@@ -81,6 +81,13 @@ export class AgentFigures {
     }
   }
 
+  /** The colours of the shown figure's materials, "#rrggbb" (sRGB). */
+  materialColors() {
+    const materials = this.mannequin?.object.visible ? this.mannequin.materials
+      : [this.sticks.lineMaterial, this.sticks.dotMaterial];
+    return materials.map((m) => `#${m.color.getHexString()}`);
+  }
+
   /**
    * Largest distance (metres) between a bone of the posed mannequin and the same joint's
    * world position in the latest frame: zero when the skin follows the stream exactly; null

@@ -7,35 +7,60 @@
 import * as THREE from "three";
 import * as SkeletonUtils from "three/addons/utils/SkeletonUtils.js";
 
-// Emotion colour: the hue follows the angle of (valence, arousal) on the circumplex through
-// these anchors (angle in degrees -> hue in degrees): happy (+v, +a) yellow-orange, angry
-// (-v, +a) red, sad (-v, -a) blue, calm (+v, -a) green; between anchors the hue is linear in
-// the angle. The saturation grows with the distance from the centre, so a neutral agent
-// (0, 0) is grey.
-const HUE_ANCHORS = [[45, 45], [135, 0], [225, -140], [315, -240], [405, -315]];
+// The figures' emotion colours (app.css, --figure-*): neutral at the centre of the
+// valence-arousal circumplex, and one colour per quadrant at these angles (degrees): happy
+// (+v, +a) yellow-orange, angry (-v, +a) red, sad (-v, -a) blue, calm (+v, -a) green.
+const QUADRANTS = [[45, "happy"], [135, "angry"], [225, "sad"], [315, "calm"]];
+
+// Share of its own colour the mannequin gives off (emissive, linear RGB). Lit by the view's
+// lights alone, its upright sides render at about half their colour's luminance (most of a
+// standing body faces sideways); with this they stay near their colour, and so near its
+// contrast against the ground (app.css).
+const MANNEQUIN_GLOW = 0.45;
+
+let palette = null;
+const around = new THREE.Color();
 
 /**
- * The colour of an emotion on the valence-arousal circumplex.
+ * The colour of the custom property `--name` of the page's style sheet (app.css).
+ *
+ * @throws {Error} when the page has no such property (app.css not loaded).
+ */
+export function paletteColor(name) {
+  const value = getComputedStyle(document.documentElement).getPropertyValue(`--${name}`).trim();
+  if (!value) {
+    throw new Error(`the colour --${name} is not set: load app.css before the app's modules`);
+  }
+  return new THREE.Color(value);
+}
+
+/** The figures' colours from app.css, read once: {neutral, quadrants: [4 colours]}. */
+function figurePalette() {
+  palette ??= {
+    neutral: paletteColor("figure-neutral"),
+    quadrants: QUADRANTS.map(([, name]) => paletteColor(`figure-${name}`)),
+  };
+  return palette;
+}
+
+/**
+ * The colour of an emotion on the valence-arousal circumplex: between two quadrants'
+ * colours by the angle of (valence, arousal), then from neutral towards that by its distance
+ * from the centre. Both blends are in linear RGB (three.js's working colour space), where
+ * luminance is linear: no blend is darker than the darker of its colours, so each keeps the
+ * contrast app.css gives its colours against the background.
  *
  * @param {number} valence -1..1
  * @param {number} arousal -1..1
  * @param {THREE.Color} target the colour to set (returned).
  */
 export function emotionColor(valence, arousal, target = new THREE.Color()) {
-  let angle = THREE.MathUtils.radToDeg(Math.atan2(arousal, valence));
-  while (angle < 45) angle += 360;
-  let hue = HUE_ANCHORS[0][1];
-  for (let i = 1; i < HUE_ANCHORS.length; i++) {
-    const [a0, h0] = HUE_ANCHORS[i - 1];
-    const [a1, h1] = HUE_ANCHORS[i];
-    if (angle <= a1) {
-      hue = h0 + ((angle - a0) / (a1 - a0)) * (h1 - h0);
-      break;
-    }
-  }
-  const radius = Math.min(1, Math.hypot(valence, arousal));
-  return target.setHSL((((hue % 360) + 360) % 360) / 360, 0.15 + 0.8 * radius, 0.55,
-                       THREE.SRGBColorSpace);
+  const { neutral, quadrants } = figurePalette();
+  let angle = THREE.MathUtils.radToDeg(Math.atan2(arousal, valence)) - QUADRANTS[0][0];
+  angle = ((angle % 360) + 360) % 360;
+  const i = Math.min(Math.floor(angle / 90), 3);
+  around.copy(quadrants[i]).lerp(quadrants[(i + 1) % 4], angle / 90 - i);
+  return target.copy(neutral).lerp(around, Math.min(1, Math.hypot(valence, arousal)));
 }
 
 /** Lines between each point and its parent, and a dot on every joint. */
@@ -147,7 +172,10 @@ export class Mannequin {
   }
 
   color(c) {
-    for (const m of this.materials) m.color.copy(c);
+    for (const m of this.materials) {
+      m.color.copy(c);
+      m.emissive?.copy(c).multiplyScalar(MANNEQUIN_GLOW);
+    }
   }
 
   dispose() {

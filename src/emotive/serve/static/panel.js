@@ -1,10 +1,84 @@
-// The side panel's parts that the served app and the browser runtime share: toasts, the
-// toggle buttons (mouse mode, figures, camera), the list of agents with their emotion
-// colours, and rates per second for the stats.
+// The side panel's parts that the served app and the browser runtime share: collapsing the
+// panel, toasts, the toggle buttons (mouse mode, figures, camera), the list of agents with
+// their emotion colours, and rates per second for the stats.
 //
 // Inputs are the page's elements by id (index.html); nothing here is in scene units.
 
 const $ = (id) => document.getElementById(id);
+
+// A window where the expanded panel takes more than this share of the width is narrow: the
+// panel starts collapsed there, unless the page kept another state.
+const NARROW_SHARE = 1 / 3;
+// Where the panel's state is kept between visits (localStorage): "expanded" or "collapsed".
+const PANEL_STATE_KEY = "emotive.panel";
+// The key that collapses and expands the panel (with no modifier, outside text fields).
+const PANEL_KEY = "p";
+
+/** The kept state of the panel, or null (none kept, or no storage: a private window). */
+function keptPanelState() {
+  try {
+    return localStorage.getItem(PANEL_STATE_KEY);
+  } catch {
+    return null;
+  }
+}
+
+function keepPanelState(state) {
+  try {
+    localStorage.setItem(PANEL_STATE_KEY, state);
+  } catch {
+    // No storage (a private window, a sandbox): the state lasts until the page reloads.
+  }
+}
+
+/**
+ * Make #panel collapsible: a "Panel" button first in it (aria-expanded says its state) and
+ * the P key hide all of it but the button (app.css, `#panel.collapsed`). The state is kept
+ * in localStorage; with none kept, narrow windows (NARROW_SHARE) start collapsed.
+ *
+ * @param {(expanded: boolean) => void} onChange called after the user collapsed or expanded
+ *   it (the panel's new size is laid out by then).
+ * @returns {HTMLButtonElement} the button (#panel-toggle).
+ */
+export function collapsiblePanel(onChange = () => {}) {
+  const panel = $("panel");
+  const button = document.createElement("button");
+  button.id = "panel-toggle";
+  button.type = "button";
+  button.title = `Hide or show the panel (${PANEL_KEY.toUpperCase()})`;
+  button.setAttribute("aria-controls", "panel");
+  button.setAttribute("aria-keyshortcuts", PANEL_KEY.toUpperCase());
+  const arrow = document.createElement("span");
+  arrow.setAttribute("aria-hidden", "true");
+  button.append(arrow, "Panel");
+  panel.prepend(button);
+
+  const show = (expanded) => {
+    panel.classList.toggle("collapsed", !expanded);
+    button.setAttribute("aria-expanded", String(expanded));
+    arrow.textContent = expanded ? "\u25C2 " : "\u25B8 ";
+  };
+  const toggle = () => {
+    const expanded = panel.classList.contains("collapsed");
+    // Focus on a control about to be hidden would be lost: it goes to the button.
+    if (!expanded && panel.contains(document.activeElement)) button.focus();
+    show(expanded);
+    keepPanelState(expanded ? "expanded" : "collapsed");
+    onChange(expanded);
+  };
+
+  const wide = panel.getBoundingClientRect().width <= NARROW_SHARE * window.innerWidth;
+  const kept = keptPanelState();
+  show(kept === "expanded" || (kept !== "collapsed" && wide));
+  button.addEventListener("click", toggle);
+  window.addEventListener("keydown", (event) => {
+    const typing = event.target.closest?.("input, textarea, select, [contenteditable]");
+    if (event.key.toLowerCase() !== PANEL_KEY || event.repeat || event.ctrlKey || event.metaKey
+        || event.altKey || typing) return;
+    toggle();
+  });
+  return button;
+}
 
 /** A function that shows `text` as a toast for 5 s and appends it to `errors`. */
 export function toaster(errors) {

@@ -7,6 +7,7 @@
 import * as THREE from "three";
 import { OrbitControls } from "three/addons/controls/OrbitControls.js";
 import { setUpXR } from "./xr.js";
+import { paletteColor } from "./figures.js";
 
 // Side of the ground grid, metres.
 const GRID_SIZE = 40;
@@ -51,7 +52,8 @@ export function createView(container) {
   container.append(renderer.domElement);
 
   const scene = new THREE.Scene();
-  const background = new THREE.Color(0x1d2126);
+  // The background, ground and grid colours are app.css's (--scene-*), with the figures'.
+  const background = paletteColor("scene-background");
   scene.background = background;
   scene.add(new THREE.HemisphereLight(0xffffff, 0x445566, 2.0));
   const sun = new THREE.DirectionalLight(0xffffff, 1.6);
@@ -64,10 +66,11 @@ export function createView(container) {
   const ground = new THREE.Mesh(new THREE.PlaneGeometry(GRID_SIZE, GRID_SIZE).rotateX(-Math.PI / 2),
                                 new THREE.MeshStandardMaterial({
                                   // Pushed back in depth so the grid lines on it always show.
-                                  color: 0x272c32, roughness: 1, polygonOffset: true,
-                                  polygonOffsetFactor: 1, polygonOffsetUnits: 4,
+                                  color: paletteColor("scene-ground"), roughness: 1,
+                                  polygonOffset: true, polygonOffsetFactor: 1, polygonOffsetUnits: 4,
                                 }));
-  floor.add(ground, groundGrid(GRID_SIZE, 0x8a96a3, 0x48515b));
+  floor.add(ground,
+            groundGrid(GRID_SIZE, paletteColor("scene-grid-axis"), paletteColor("scene-grid")));
   world.add(floor);
 
   const camera = new THREE.PerspectiveCamera(50, window.innerWidth / window.innerHeight, 0.05, 200);
