@@ -2,8 +2,10 @@
 
 The clip, of any action and style, is translated frame by frame into a style or a blend of
 styles (or a schedule of them) by online local mixtures of autoregressive models
-(:mod:`emotive.models.mar`). The database index is built once from the Bandai Namco data into
-``$EMOTIVE_HOME/mar/`` (automatically on first use, or with ``--build-index``).
+(:mod:`emotive.models.mar`). The line it prints ends with the output's foot skate beside the
+input's (the evaluation suite's measure, :func:`emotive.eval.feet.foot_skating`). The
+database index is built once from the Bandai Namco data into ``$EMOTIVE_HOME/mar/``
+(automatically on first use, or with ``--build-index``).
 
 Heavy modules are imported inside the command so that ``emotive --help`` stays fast.
 """
@@ -177,7 +179,7 @@ def transfer(
     typer.echo(
         f"wrote {out}: {n_in} frames -> {n_out} frames ({result.motion.duration:.2f} s) in "
         f"style {result.motion.metadata['style']}; {1000 * seconds / n_in:.1f} ms/frame; "
-        f"feet {'pinned' if result.pinned else 'not pinned (no contacts)'}"
+        f"{result.feet_summary()}"
     )
     if preview is not None:
         console.print(f"wrote {preview}")

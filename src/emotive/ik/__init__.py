@@ -4,8 +4,9 @@ Five IK chains (two legs, two arms with elbow targets, head-torso) with joint li
 damped least squares solver warm-started from the previous frame, extraction of pelvis,
 end-effector and elbow trajectories in chain frames, and helpers built on them:
 :func:`reconstruct` rebuilds a clip from its own trajectories, :func:`pin_feet` keeps planted
-feet still (foot-plant cleanup for the generators) and :func:`root_from_stance` rebuilds a
-gliding root's path from the stance foot. Chains work on any humanoid rig: consecutive chain
+feet still (foot-plant cleanup for the generators), :func:`root_from_stance` rebuilds a
+gliding root's path from the stance foot and :func:`~emotive.ik.floor.keep_above_floor` lifts
+feet that sink under the floor. Chains work on any humanoid rig: consecutive chain
 joints may have intermediate joints between them (CMU's ``Neck1``, Unreal's ``spine_02``), which
 keep the clip's rotations (:func:`link_transforms`), and knee and elbow hinges count flexion
 from the straight limb whatever the rig's joint frames.

@@ -7,7 +7,11 @@ generator and a Table 1 predictor:
 * :class:`GaitWalkGenerator` is what ``emotive generate`` does: the walks of
   :func:`~emotive.models.gait.walks.generate_walks` with the foot-contact cleanup, at
   :data:`OUTPUT_FPS` (the data's rate; a checkpoint of another rate is resampled), along the
-  request's path (by default a figure-8 of radius 2 m, the command's default);
+  request's path (by default a figure-8 of radius 2 m, the command's default), their feet
+  kept above the floor (:func:`emotive.ik.floor.keep_above_floor`: no heel or toe lower than
+  in the checkpoint's standing pose, which stands on the floor, by more than
+  :data:`~emotive.ik.floor.FLOOR_ALLOWANCE`; the stream's network sinks into it by up to 3 cm,
+  a sad walk for much of its stance);
 * the predictor is :class:`~emotive.models.gait.predict.GaitPredictor`.
 
 Legend: ``T`` frames, ``C`` labels.
@@ -23,6 +27,8 @@ import numpy as np
 
 from emotive.core.motion import Motion
 from emotive.core.ops import resample
+from emotive.core.roles import resolve_roles
+from emotive.ik.floor import keep_above_floor, standing_floor
 from emotive.models.api import Capabilities, Generated, GenerationRequest, check_request
 from emotive.models.gait.model import default_checkpoint_path, load_gait_model
 from emotive.models.gait.predict import GaitPredictor
@@ -63,7 +69,8 @@ class GaitWalkGenerator:
     Attributes:
         model: the loaded model.
         name: its name in reports.
-        foot_lock: hold planted feet in the stream (``emotive generate`` does; ``--raw`` not).
+        foot_lock: hold planted feet in the stream and keep them above the floor
+            (``emotive generate`` does; ``--raw`` not).
     """
 
     model: GaitModel
@@ -94,6 +101,8 @@ class GaitWalkGenerator:
                               seed=request.seed, primer=request.primer, progress=progress,
                               foot_lock=self.foot_lock)[0]
         motion, emotion = at_output_rate(walk.motion, walk.emotion)
+        if self.foot_lock:
+            motion = keep_above_floor(motion, model_floor(self.model))
         motion = motion.replace(metadata={**motion.metadata, "name": request.name})
         return Generated(motion, emotion, walk.labels, walk.path,
                          f"{request.name}: {motion.num_frames} frames ({motion.duration:.1f} s)"
@@ -113,6 +122,19 @@ def at_output_rate(motion: Motion, emotion: np.ndarray) -> tuple[Motion, np.ndar
     dst = np.arange(out.num_frames) / OUTPUT_FPS
     moved = np.stack([np.interp(dst, src, emotion[:, c]) for c in range(emotion.shape[1])], 1)
     return out, moved / moved.sum(1, keepdims=True)
+
+
+def model_floor(model: GaitModel) -> np.ndarray:
+    """``(2, 2)`` floor heights of the model's rig: its standing pose's heels and toes.
+
+    The standing pose (:class:`~emotive.models.gait.controls.GaitControls`, a statistic of
+    the training data) stands on the floor; the stream's foot lock takes the same heights as
+    its ground.
+    """
+    c = model.controls
+    standing = Motion(c.skeleton, c.standing_rotations[None], c.standing_positions[None],
+                      c.fps).positions_with_end_sites()[0]
+    return standing_floor(standing, resolve_roles(c.skeleton))
 
 
 def load_model(name: str = "gait", weights: str | Path | None = None) -> GaitModel:
