@@ -68,6 +68,8 @@ def test_the_page_runs_from_static_files_with_no_request_off_the_host(web):
     assert {"agent.onnx", "agent.json", "mannequin.glb", "ort.wasm.bundle.min.mjs",
             "ort-wasm-simd-threaded.wasm", "three.module.js"} <= fetched
     assert web.hook("e.fps") == 30 and "happy" in web.hook("e.labels")
+    expanded = web.page.get_attribute("#panel-toggle", "aria-expanded")
+    assert expanded in ("true", "false")
 
 
 def test_joints_after_90_frames_match_the_generator_fed_the_same_inputs(web):

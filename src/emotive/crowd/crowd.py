@@ -367,8 +367,8 @@ class Crowd:
         unit[moving] = way[moving] / dist[moving, None]
         speed = np.array([self.nav.params(key).desired_speed for key in keys])
         side = sidestep(ground, unit, moving, speed)
-        stuck = moving & self._stalled(keys, ground)
-        side[stuck] = np.where(side[stuck] > 0, -1.0, 1.0)
+        stuck = moving & (side > 0) & self._stalled(keys, ground)
+        side[stuck] = -1.0
         self._stuck = {key for key, s in zip(keys, stuck, strict=True) if s}
         aside = side != 0
         right = np.stack((unit[:, 1], -unit[:, 0]), axis=1)

@@ -26,8 +26,8 @@ CORNER_PASS = 0.25
 ONCOMING_RANGE = 4.0
 #: Sideways distance (m) within which someone ahead is in the way.
 ONCOMING_WIDTH = 1.0
-#: Cosine of the angle between two ways above which they are the "other way" (about 110 deg).
-ONCOMING_COS = -0.35
+#: Cosine of the angle between two ways below which they are the "other way" (over 135 deg).
+ONCOMING_COS = -0.7
 #: How far ahead (m) an agent looks for a slower one going its way, to pass it on the left ...
 OVERTAKE_RANGE = 2.5
 #: ... when that one's desired speed is this much lower (m/s).

@@ -17,7 +17,8 @@ import { listenToGround } from "./ground-input.js";
 import { AgentFigures, dropUnseen, figuresOf, loadMannequin } from "./agent-figures.js";
 import { FollowCamera } from "./follow-camera.js";
 import {
-  AgentList, Rates, cameraButtons, figureButtons, mouseModeButtons, sticksOnly, toaster,
+  AgentList, Rates, cameraButtons, collapsiblePanel, figureButtons, mouseModeButtons,
+  sticksOnly, toaster,
 } from "./panel.js";
 import { AgentEngine, Lock } from "./engine.js";
 import { installHook } from "./hook.js";
@@ -39,6 +40,7 @@ const errors = [];
 const toast = toaster(errors);
 
 const view = createView($("view"));
+collapsiblePanel();
 const cameras = new FollowCamera(view);
 const lock = new Lock();
 
