@@ -80,3 +80,14 @@ def test_emotive_import_and_help_do_not_load_jupedsim():
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           timeout=120)
     assert proc.stdout.strip().splitlines()[-1] == "False", proc.stderr
+
+
+def test_without_avoidance_no_one_steps_aside(tmp_path, model):
+    scene = load_scene(write_scene(tmp_path, CORRIDOR.format(count=1)))
+    goals = [Goal("waypoints", points=((6.0, 1.5),)), Goal("waypoints", points=((1.0, 1.5),))]
+    for avoidance, aside in ((False, False), (True, True)):
+        crowd = Crowd(scene, model=model, spawn=False, avoidance=avoidance)
+        a, b = crowd.add_agents(np.array([[2.0, 1.5], [4.0, 1.5]]), goals, ["neutral"] * 2)
+        crowd.step()
+        targets = np.array([crowd.nav._targets[a], crowd.nav._targets[b]])
+        assert (np.abs(targets[:, 1] - 1.5) > 0.3).all() == aside, targets

@@ -366,7 +366,7 @@ class Crowd:
         unit = np.zeros_like(way)
         unit[moving] = way[moving] / dist[moving, None]
         speed = np.array([self.nav.params(key).desired_speed for key in keys])
-        side = sidestep(ground, unit, moving, speed)
+        side = sidestep(ground, unit, moving, speed) if self.nav.avoidance else np.zeros(n)
         stuck = moving & (side > 0) & self._stalled(keys, ground)
         side[stuck] = -1.0
         self._stuck = {key for key, s in zip(keys, stuck, strict=True) if s}
