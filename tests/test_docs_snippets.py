@@ -37,7 +37,7 @@ PAGES = [REPO / "README.md", *(REPO / "docs" / f"{page}.md"
 BLOCK = re.compile(r"^```(?:sh|bash)[^\n]*\n(.*?)^```", re.DOTALL | re.MULTILINE)
 BIN = Path(sys.executable).parent
 #: Hang guard per block only; nothing is asserted about time.
-TIMEOUT_S = 600
+TIMEOUT_S = 1200
 #: Commands whose real run takes minutes or needs the data: run as ``--help`` instead.
 EXPENSIVE = ("emotive train", "emotive evaluate", "emotive serve", "emotive reconstruct",
              "emotive study serve", "emotive study simulate", "emotive synth",

@@ -76,6 +76,8 @@ STALL_FRAMES = 60
 STALL_RANGE = 0.1
 #: A plan shorter than this (m) stops the body where it stands.
 MIN_LEAD = 0.02
+#: A navigation agent slower than this (m/s) is waiting: its body stands.
+STAND_SPEED = 0.15
 #: Largest turn of a body's path from its heading per frame (radians; 450 degrees/s at 30 fps).
 MAX_TURN = math.radians(15.0)
 #: A body keeps its path while the new one would turn less than this (radians) ...
@@ -422,13 +424,15 @@ class Crowd:
         long as the distance that makes the gait's target speed the navigation's speed.
         ``None`` when the body's current path already runs that way (within
         :data:`KEEP_ANGLE` and :data:`KEEP_LEAD`): setting a path costs far more than a step.
+        A plan slower than :data:`STAND_SPEED` stops the body: a waiting navigation agent
+        jitters by millimetres a frame, and a body sent after each jitter walks in circles.
         """
         step = plan - here
         gap = float(np.hypot(*step))
         v_nav = gap * self.fps
         lead = max(gap, STOP_DISTANCE * min(v_nav / max(speed, 1e-6), 1.0))
         facing = np.array([math.sin(yaw), math.cos(yaw)])
-        if lead < MIN_LEAD:
+        if lead < MIN_LEAD or v_nav < STAND_SPEED:
             end = here + 0.01 * facing
         else:
             want = math.atan2(step[0], step[1])

@@ -49,7 +49,7 @@ TOKEN = "browser-test-token"
 STALL_SECONDS = 120.0
 #: Wall seconds any one wait may take in all (a hang guard, not a budget), and the page's
 #: start.
-HANG_SECONDS = 300.0
+HANG_SECONDS = 600.0
 #: Wall seconds an HTTP request to the test server may take (a hang guard).
 REQUEST_SECONDS = 60.0
 #: Milliseconds between two polls of a wait.
