@@ -91,3 +91,13 @@ def test_without_avoidance_no_one_steps_aside(tmp_path, model):
         crowd.step()
         targets = np.array([crowd.nav._targets[a], crowd.nav._targets[b]])
         assert (np.abs(targets[:, 1] - 1.5) > 0.3).all() == aside, targets
+
+
+def test_a_waiting_navigation_agent_stands_its_body(tmp_path, model):
+    scene = load_scene(write_scene(tmp_path, CORRIDOR.format(count=1)))
+    crowd = Crowd(scene, model=model, spawn=False)
+    here = np.array([2.0, 1.5])
+    slow = crowd._body_path(0, here, here + np.array([0.1 / crowd.fps, 0.0]), 0.0, 1.1)
+    walk = crowd._body_path(1, here, here + np.array([0.8 / crowd.fps, 0.0]), 0.0, 1.1)
+    assert slow is not None and slow.length <= 0.011
+    assert walk is not None and walk.length > 0.2
