@@ -184,9 +184,13 @@ class Tally:
     async def drain(self, reader: asyncio.Task) -> None:
         """Wait for the replies still due (a hang guard of DRAIN_TIMEOUT)."""
         deadline = time.monotonic() + DRAIN_TIMEOUT
-        while (self.counts["replies"] < self.counts["sent"] and time.monotonic() < deadline
-               and not reader.done()):
-            await asyncio.sleep(0.05)
+        while True:
+            self.changed.clear()
+            left = deadline - time.monotonic()
+            if self.counts["replies"] >= self.counts["sent"] or left <= 0 or reader.done():
+                return
+            with contextlib.suppress(asyncio.TimeoutError):
+                await asyncio.wait_for(self.changed.wait(), min(left, 1.0))
 
     def result(self, ws: Any) -> dict[str, Any]:
         """The counts, once the connection is done."""
